@@ -1,0 +1,32 @@
+"""masspush: estimate how an articulated object's mass is distributed by pushing it.
+
+Importing the package registers the Gymnasium environment "masspush/Chain-v0".
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+
+from masspush.batch import ChainBatch
+from masspush.chain import ChainParams, sample_chain
+from masspush.config import EnvConfig, PhysicsConfig
+from masspush.env import ENV_ID, ChainEnv
+from masspush.simulate import ChainSim, PushOutcome
+
+__version__ = "0.1.0"
+
+if ENV_ID not in gym.registry:
+    gym.register(id=ENV_ID, entry_point="masspush.env:ChainEnv")
+
+__all__ = [
+    "ENV_ID",
+    "ChainBatch",
+    "ChainEnv",
+    "ChainParams",
+    "ChainSim",
+    "EnvConfig",
+    "PhysicsConfig",
+    "PushOutcome",
+    "__version__",
+    "sample_chain",
+]

@@ -1,0 +1,327 @@
+"""The articulated chain on the table: its parameters, sampling, MuJoCo model and kinematics.
+
+The chain lies flat on the table. Link 0 is the root (a free joint at its centre); link i
+hangs off link i-1 by a hinge about the vertical axis in the middle of the gap between
+their boxes. A chain *configuration* is (root x, root y, root yaw, joint angles), the
+quantity the robot observes at rest.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from masspush.config import PhysicsConfig
+
+#: Option keys accepted by `sample_chain` to pin parameters instead of sampling them.
+PIN_KEYS = ("masses", "friction", "lengths", "joint_angles", "root_pose")
+
+# Contact bits: the table touches links only; the pusher touches links only.
+_LINK_BITS = 1  # contype and conaffinity of links: links collide with each other
+_TABLE_BITS = 2
+_PUSHER_BITS = 4
+
+
+@dataclass(frozen=True)
+class ChainParams:
+    """One concrete chain: its unknowns (masses, friction) and its known geometry and pose."""
+
+    masses: tuple[float, ...]
+    """Mass of each link, kg."""
+    friction: float
+    """Table friction coefficient."""
+    lengths: tuple[float, ...]
+    """Length of each link, m."""
+    joint_angles: tuple[float, ...]
+    """Initial hinge angles, rad (n - 1 of them)."""
+    root_pose: tuple[float, float, float]
+    """Initial root link centre x, y (m) and yaw (rad)."""
+
+    def __post_init__(self) -> None:
+        n = len(self.masses)
+        if n < 2:
+            raise ValueError(f"a chain needs at least 2 links, got masses {self.masses!r}")
+        _check_vector("masses", self.masses, n, positive=True)
+        _check_vector("lengths", self.lengths, n, positive=True)
+        _check_vector("joint_angles", self.joint_angles, n - 1)
+        _check_vector("root_pose", self.root_pose, 3)
+        if not (math.isfinite(self.friction) and self.friction > 0):
+            raise ValueError(f"friction must be a positive finite number, got {self.friction!r}")
+
+    @property
+    def n_links(self) -> int:
+        return len(self.masses)
+
+    @property
+    def mass_distribution(self) -> np.ndarray:
+        """Masses divided by the total mass: what the estimators predict."""
+        m = np.asarray(self.masses, dtype=float)
+        return m / m.sum()
+
+    @property
+    def initial_config(self) -> np.ndarray:
+        """The configuration (x, y, yaw, joint angles) the chain starts in."""
+        return np.array([*self.root_pose, *self.joint_angles], dtype=float)
+
+
+def _check_vector(name: str, value: Any, length: int, positive: bool = False) -> None:
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be {length} numbers, got {value!r}") from None
+    if arr.shape != (length,):
+        raise ValueError(f"{name} must have {length} values, got {value!r}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    if positive and np.any(arr <= 0):
+        raise ValueError(f"{name} must be positive, got {value!r}")
+
+
+def sample_chain(
+    physics: PhysicsConfig,
+    rng: np.random.Generator,
+    pinned: Mapping[str, Any] | None = None,
+) -> ChainParams:
+    """Draw a chain from the setting's distributions; `pinned` fixes any of PIN_KEYS.
+
+    Every draw is made whether or not it is pinned, so pinning one parameter leaves the
+    others exactly as the same seed would have drawn them.
+    """
+    pinned = dict(pinned or {})
+    unknown = sorted(set(pinned) - set(PIN_KEYS))
+    if unknown:
+        raise ValueError(f"unknown option(s) {unknown}; valid options: {list(PIN_KEYS)}")
+    n = physics.n_links
+    drawn = {
+        "masses": rng.uniform(*physics.mass_range, size=n),
+        "friction": float(rng.uniform(*physics.friction_range)),
+        "lengths": rng.uniform(*physics.length_range, size=n),
+        "joint_angles": rng.uniform(
+            -physics.init_joint_range, physics.init_joint_range, size=n - 1
+        ),
+        "root_pose": np.array(
+            [
+                rng.uniform(-physics.root_xy_range, physics.root_xy_range),
+                rng.uniform(-physics.root_xy_range, physics.root_xy_range),
+                rng.uniform(-math.pi, math.pi),
+            ]
+        ),
+    }
+    for key, value in pinned.items():
+        expected = {"masses": n, "lengths": n, "joint_angles": n - 1, "root_pose": 3}.get(key)
+        if key == "friction":
+            try:
+                value = float(value)
+            except (TypeError, ValueError):
+                raise ValueError(f"friction must be a number, got {value!r}") from None
+        else:
+            _check_vector(key, value, expected, positive=key in ("masses", "lengths"))
+        drawn[key] = value
+    angles = np.asarray(drawn["joint_angles"], dtype=float)
+    if np.any(np.abs(angles) > physics.joint_limit):
+        raise ValueError(
+            f"joint_angles {angles.tolist()} exceed the joint limit +-{physics.joint_limit} rad"
+        )
+    return ChainParams(
+        masses=tuple(float(v) for v in drawn["masses"]),
+        friction=float(drawn["friction"]),
+        lengths=tuple(float(v) for v in drawn["lengths"]),
+        joint_angles=tuple(float(v) for v in angles),
+        root_pose=tuple(float(v) for v in drawn["root_pose"]),
+    )
+
+
+def _box_inertia(mass: float, size: Sequence[float]) -> list[float]:
+    """Principal moments of a solid box with full edge lengths `size`."""
+    a, b, c = size
+    return [mass / 12 * (b * b + c * c), mass / 12 * (a * a + c * c), mass / 12 * (a * a + b * b)]
+
+
+def build_spec(
+    chain: ChainParams,
+    physics: PhysicsConfig,
+    add_pusher: Callable[[mujoco.MjSpec, PhysicsConfig], None] | None = None,
+) -> mujoco.MjSpec:
+    """The scene as an MjSpec: table, chain (in its initial pose) and, optionally, a pusher."""
+    w, h, gap = physics.link_width, physics.link_height, physics.joint_gap
+    spec = mujoco.MjSpec()
+    spec.modelname = f"chain{chain.n_links}"
+    spec.compiler.degree = False  # MjSpec defaults to degrees: joint ranges here are radians
+    opt = spec.option
+    opt.timestep = physics.timestep
+    # Stiff velocity servos need implicit damping; elliptic cones give isotropic Coulomb
+    # friction, which the sliding-distance test checks against v^2 / (2 mu g) [notes].
+    opt.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    opt.cone = mujoco.mjtCone.mjCONE_ELLIPTIC
+    # MuJoCo skips parent-child contacts by default; neighbours must collide [notes].
+    # Without auto-reset a diverged simulation keeps its NaNs, so we report, not hide, it.
+    opt.disableflags |= (
+        mujoco.mjtDisableBit.mjDSBL_FILTERPARENT | mujoco.mjtDisableBit.mjDSBL_AUTORESET
+    )
+
+    spec.worldbody.add_light(
+        name="sun", pos=[0, 0, 3], dir=[0, 0, -1], type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL
+    )
+    # The table's priority makes its mu govern link-table contacts exactly.
+    spec.worldbody.add_geom(
+        name="table",
+        type=mujoco.mjtGeom.mjGEOM_PLANE,
+        size=[0, 0, 0.05],
+        friction=[chain.friction, 0.005, 0.0001],
+        priority=1,
+        contype=_TABLE_BITS,
+        conaffinity=_LINK_BITS,
+        rgba=[0.85, 0.85, 0.8, 1],
+    )
+    x, y, yaw = chain.root_pose
+    parent = spec.worldbody
+    for i, (length, mass) in enumerate(zip(chain.lengths, chain.masses)):
+        if i == 0:
+            body = parent.add_body(name="link0", pos=[x, y, h / 2], quat=_yaw_quat(yaw))
+            body.add_freejoint(name="root")
+            centre = [0.0, 0.0, 0.0]
+        else:
+            # Child frame at the hinge, in the middle of the gap after the parent's box.
+            # Built straight; the initial joint angles go into qpos0 (`compile_scene`),
+            # so that a hinge's qpos is its angle relative to the parent link.
+            # The root's frame is at its centre; every other link's frame is at its hinge.
+            to_hinge = chain.lengths[i - 1] / 2 + gap / 2 if i == 1 else chain.lengths[i - 1] + gap
+            body = parent.add_body(name=f"link{i}", pos=[to_hinge, 0, 0])
+            body.add_joint(
+                name=f"joint{i}",
+                type=mujoco.mjtJoint.mjJNT_HINGE,
+                axis=[0, 0, 1],
+                range=[-physics.joint_limit, physics.joint_limit],
+                limited=mujoco.mjtLimited.mjLIMITED_TRUE,
+            )
+            centre = [gap / 2 + length / 2, 0.0, 0.0]
+            # A short cylinder marks the hinge; visual only, as it is rotationally symmetric.
+            body.add_geom(
+                name=f"hinge{i}",
+                type=mujoco.mjtGeom.mjGEOM_CYLINDER,
+                size=[0.4 * w, h / 2, 0],
+                contype=0,
+                conaffinity=0,
+                mass=0,
+                rgba=[0.3, 0.3, 0.3, 1],
+            )
+        body.explicitinertial = True
+        body.mass = mass
+        body.ipos = centre
+        body.inertia = _box_inertia(mass, (length, w, h))
+        body.add_geom(
+            name=f"box{i}",
+            type=mujoco.mjtGeom.mjGEOM_BOX,
+            size=[length / 2, w / 2, h / 2],
+            pos=centre,
+            friction=[physics.link_friction, 0.005, 0.0001],
+            condim=3,
+            contype=_LINK_BITS,
+            conaffinity=_LINK_BITS | _TABLE_BITS | _PUSHER_BITS,
+            rgba=_link_colour(i),
+            mass=0,
+        )
+        parent = body
+    if add_pusher is not None:
+        add_pusher(spec, physics)
+    return spec
+
+
+def compile_scene(
+    chain: ChainParams,
+    physics: PhysicsConfig,
+    add_pusher: Callable[[mujoco.MjSpec, PhysicsConfig], None] | None = None,
+) -> mujoco.MjModel:
+    """Compile the scene with the chain's initial configuration as the model's reset pose."""
+    model = build_spec(chain, physics, add_pusher).compile()
+    layout = ChainLayout.of(model, chain.n_links)
+    model.qpos0[layout.joint_qpos] = chain.joint_angles
+    return model
+
+
+def _yaw_quat(yaw: float) -> list[float]:
+    return [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)]
+
+
+def _link_colour(i: int) -> list[float]:
+    palette = [(0.12, 0.47, 0.71), (1.0, 0.5, 0.05), (0.17, 0.63, 0.17), (0.84, 0.15, 0.16)]
+    return [*palette[i % len(palette)], 1.0]
+
+
+PUSHER_CONTACT_BITS = (_PUSHER_BITS, _LINK_BITS)
+"""(contype, conaffinity) for pusher geoms: they touch the chain, never the table."""
+
+
+@dataclass(frozen=True)
+class ChainLayout:
+    """Where a chain's state lives in a compiled model's qpos / qvel (looked up once)."""
+
+    n_links: int
+    root_qpos: int
+    root_dof: int
+    joint_qpos: np.ndarray
+    nq: int
+    nv: int
+
+    @classmethod
+    def of(cls, model: mujoco.MjModel, n_links: int) -> ChainLayout:
+        root = model.joint("root")
+        joints = [model.joint(f"joint{i}") for i in range(1, n_links)]
+        jq = np.array([int(j.qposadr[0]) for j in joints], dtype=int)
+        # The chain's joints come first in the model, so its dofs are 0 .. 6 + n - 1.
+        return cls(
+            n_links,
+            int(root.qposadr[0]),
+            int(root.dofadr[0]),
+            jq,
+            nq=7 + n_links - 1,
+            nv=6 + n_links - 1,
+        )
+
+    def config(self, qpos: np.ndarray) -> np.ndarray:
+        """(…, nq_model) qpos -> (…, 3 + n - 1) configuration (x, y, yaw, joint angles)."""
+        r = self.root_qpos
+        quat = qpos[..., r + 3 : r + 7]
+        return np.concatenate(
+            [qpos[..., r : r + 2], quat_yaw(quat)[..., None], qpos[..., self.joint_qpos]], axis=-1
+        )
+
+    def set_config(self, qpos: np.ndarray, config: np.ndarray, height: float) -> None:
+        """Write a flat configuration into qpos (root at `height`, upright)."""
+        r = self.root_qpos
+        qpos[r : r + 3] = [config[0], config[1], height]
+        qpos[r + 3 : r + 7] = _yaw_quat(float(config[2]))
+        qpos[self.joint_qpos] = config[3:]
+
+
+def quat_yaw(quat: np.ndarray) -> np.ndarray:
+    """Yaw (rotation about z) of (…, 4) quaternions (w, x, y, z), in (-pi, pi]."""
+    w, x, y, z = (quat[..., k] for k in range(4))
+    return np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
+def wrap_angle(a: np.ndarray | float) -> np.ndarray:
+    """Angles wrapped to [-pi, pi)."""
+    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
+
+
+def link_poses(
+    config: np.ndarray, lengths: Sequence[float], joint_gap: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Planar forward kinematics: (n, 2) link box centres and (n,) headings for a configuration."""
+    config = np.asarray(config, dtype=float)
+    n = len(lengths)
+    headings = config[2] + np.concatenate([[0.0], np.cumsum(config[3 : 3 + n - 1])])
+    centres = np.zeros((n, 2))
+    centres[0] = config[:2]
+    for i in range(1, n):
+        u_prev = np.array([math.cos(headings[i - 1]), math.sin(headings[i - 1])])
+        u = np.array([math.cos(headings[i]), math.sin(headings[i])])
+        joint = centres[i - 1] + (lengths[i - 1] / 2 + joint_gap / 2) * u_prev
+        centres[i] = joint + (joint_gap / 2 + lengths[i] / 2) * u
+    return centres, headings

@@ -1,0 +1,112 @@
+"""The `masspush` command line."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+
+import numpy as np
+
+
+def _format(values: np.ndarray, digits: int = 3) -> str:
+    return "[" + ", ".join(f"{v:+.{digits}f}" for v in np.asarray(values, dtype=float)) + "]"
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    """Random pushes on a random chain: print each push and the rest pose it led to."""
+    from masspush.env import ChainEnv
+
+    env = ChainEnv(n_links=args.links, mass_range=tuple(args.mass_range), pushes=args.pushes)
+    obs, info = env.reset(seed=args.seed)
+    n = args.links
+    print(f"A {n}-link chain on a table (seed {args.seed}); the robot may only push it and look.")
+    print(f"  true masses        {_format(info['masses'])} kg")
+    print(f"  mass distribution  {_format(info['mass_distribution'])}   <- what is to be estimated")
+    print(f"  table friction     {info['friction']:.3f}")
+    print(f"  link lengths       {_format(info['lengths'])} m")
+    print(f"  rest pose q0       {_format(obs[: 2 + n])}  (x, y, yaw, joint angles; noisy)")
+    terminated = False
+    k = 0
+    while not terminated:
+        action = env.action_space.sample()
+        obs, _, terminated, _, info = env.step(action)
+        k += 1
+        p = info["push"]
+        side = "from the right" if p["side"] > 0 else "from the left"
+        print(
+            f"push {k}: a={_format(action, 2)} -> link {p['link']} {side}, "
+            f"{p['offset'] * 100:+.1f} cm from its centre, at {p['speed']:.2f} m/s"
+        )
+        if info["failure"]:
+            print(f"  push failed: {info['failure']}")
+        else:
+            print(f"  at rest after {info['settle_time']:.2f} s: q{k} = {_format(obs[: 2 + n])}")
+    print("No estimator is trained yet: later versions print the estimate after each push.")
+    return 0
+
+
+def cmd_bench_sim(args: argparse.Namespace) -> int:
+    from masspush.bench import bench_sim
+
+    result = bench_sim(
+        n_links=args.links,
+        mass_range=tuple(args.mass_range),
+        env_pushes=args.env_pushes,
+        batch_chains=args.chains,
+        threads=args.threads,
+        seed=args.seed,
+        progress=not args.json,
+    )
+    print(json.dumps(result.as_dict()) if args.json else result.table())
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="masspush",
+        description="Estimate mass distributions of articulated chains by pushing them.",
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    def chain_args(p: argparse.ArgumentParser) -> None:
+        p.add_argument("--links", type=int, default=2, help="number of links (default 2)")
+        p.add_argument(
+            "--mass-range",
+            type=float,
+            nargs=2,
+            default=[0.1, 1.0],
+            metavar=("LOW", "HIGH"),
+            help="link mass range in kg (default 0.1 1.0)",
+        )
+        p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+
+    demo = sub.add_parser("demo", help="push a random chain and print what happens")
+    chain_args(demo)
+    demo.add_argument("--pushes", type=int, default=None, help="pushes (default: one per link)")
+    demo.set_defaults(func=cmd_demo)
+
+    bench = sub.add_parser("bench", help="benchmarks")
+    bench_sub = bench.add_subparsers(dest="what", required=True)
+    sim = bench_sub.add_parser("sim", help="pushes per second: environment, batch, ceiling")
+    chain_args(sim)
+    sim.add_argument("--env-pushes", type=int, default=200, help="pushes through the env")
+    sim.add_argument("--chains", type=int, default=512, help="chains in the batch run")
+    sim.add_argument("--threads", type=int, default=None, help="threads (default: all cores)")
+    sim.add_argument("--json", action="store_true", help="print one JSON object")
+    sim.set_defaults(func=cmd_bench_sim)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except ValueError as err:  # bad input: a clear message, not a traceback
+        print(f"masspush: error: {err}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

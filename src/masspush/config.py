@@ -1,0 +1,215 @@
+"""Every physical constant and paper value of the simulated world, in one place.
+
+Sources named in the comments:
+- [paper]   Kumar, Essa, Ha, Liu, "Estimating Mass Distribution of Articulated Objects
+            using Non-prehensile Manipulation", CoRL 2020 (Sec. 3.4 and 4).
+- [code]    the authors' research code, as summarised in shared/notes/paper-details.md.
+- [notes]   our MuJoCo measurements, shared/notes/mujoco-chain-physics.md.
+- [ours]    our own choice; docs/simulation.md explains each one.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields, replace
+from typing import Any
+
+Range = tuple[float, float]
+
+
+def _check_range(name: str, value: Range, *, low: float | None = None) -> None:
+    """Raise ValueError unless value is a finite (lo, hi) pair with lo <= hi (and lo >= low)."""
+    try:
+        lo, hi = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a (low, high) pair, got {value!r}") from None
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    if lo > hi:
+        raise ValueError(f"{name} is empty: low {lo} > high {hi}")
+    if low is not None and lo < low:
+        raise ValueError(f"{name} must not go below {low}, got {value!r}")
+
+
+def _check_positive(name: str, value: float) -> None:
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+
+
+def _check_non_negative(name: str, value: float) -> None:
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+        raise ValueError(f"{name} must be a non-negative finite number, got {value!r}")
+
+
+@dataclass(frozen=True)
+class PhysicsConfig:
+    """The simulated world: chain, table, push mapping and simulation numerics.
+
+    Each episode samples one chain from the ranges here (see `masspush.chain.sample_chain`).
+    Lengths in metres, masses in kilograms, angles in radians, times in seconds.
+    """
+
+    # --- the chain and its sampling distributions ---------------------------------------
+    n_links: int = 2
+    """Number of links; the paper studies 2 and 3 [paper]."""
+    mass_range: Range = (0.1, 1.0)
+    """Each link's mass ~ U(mass_range), kg; the paper's ranges are [0.1,1], [1,10], [0.1,10] [paper]."""
+    friction_range: Range = (0.5, 1.0)
+    """Table friction coefficient mu ~ U(friction_range) per episode [paper Sec. 4.2]."""
+    length_range: Range = (0.1, 0.15)
+    """Each link's length (the pushable face) ~ U(length_range), m [paper Sec. 4.2]."""
+    link_width: float = 0.04
+    """Width of a link box, m (the pushed faces are link_width apart) [ours, notes' model]."""
+    link_height: float = 0.03
+    """Height of a link box, m [ours, notes' model]."""
+    joint_gap: float = 0.04
+    """Gap between neighbouring boxes, hinge in its middle, m. With gap = width the boxes
+    first touch at +-pi/2, just past the joint limit, so self-collision backs the limit [ours]."""
+    joint_limit: float = 1.55
+    """Hinge range +-joint_limit, rad [code]."""
+    init_joint_range: float = 0.75
+    """Initial joint angles ~ U(-init_joint_range, init_joint_range), rad [code]."""
+    root_xy_range: float = 0.1
+    """Initial root link centre ~ U(-r, r)^2 on the table, m; yaw ~ U(-pi, pi) [ours]."""
+    link_friction: float = 0.5
+    """Friction of link-link and link-pusher contacts (the table's mu governs link-table) [ours]."""
+
+    # --- the push -----------------------------------------------------------------------
+    push_speed_max: float = 5.0
+    """Push speed = push_speed_max * |a1|, m/s [code]."""
+    push_offset_fraction: float = 0.9
+    """Contact point offset from the link centre spans +-fraction/2 of its length [code]."""
+    push_hold_time: float = 0.010
+    """Time the pusher holds the target speed in contact, s: 10 steps of 1 ms [paper, code]."""
+    push_ramp_time: float = 0.005
+    """Linear ramp from rest to the target speed before the hold, s. The paper's arm reaches
+    its target speed with time constant 1/kd = 6.6 ms; an instant jump converges badly in dt [notes]."""
+    pusher_radius: float = 0.01
+    """Radius of the stiff pusher's tip, m (a vertical capsule, like the dowel of the paper's
+    real setup: a ball can ride up a rocking link's edge and throw the chain) [ours]."""
+    pusher_clearance: float = 0.001
+    """Gap between the ball and the pushed face when the push starts, m [ours]."""
+    pusher_mass: float = 1.0e4
+    """Mass of the idealised stiff pusher, kg: >300x the heaviest chain, so a chain's
+    mass barely slows it (the property that makes a common mass scale unobservable) [ours]."""
+
+    # --- simulation numerics ------------------------------------------------------------
+    timestep: float = 0.001
+    """Physics step, s [paper: 1 ms]. 5 ms is unusable [notes]."""
+    rest_velocity: float = 1.0e-3
+    """At rest when every chain velocity component is below this (m/s, rad/s). The paper
+    used 0.05; the stricter value moves the rest pose by < 0.3 mm and costs ~10 ms sim [notes]."""
+    rest_check_steps: int = 10
+    """The rest and failure checks run every this many steps (the same in every path) [ours]."""
+    settle_time_cap: float = 10.0
+    """A push not at rest after this much simulated time is a 'timeout' failure, s. The
+    paper capped at 100 s; pushes here settle in < 2 s, so 10 s is a wide margin [ours]."""
+    max_velocity: float = 500.0
+    """Any chain velocity component above this (m/s, rad/s) is an 'unstable' failure [ours]."""
+    max_tilt: float = 0.1
+    """A chain that comes to rest tilted more than this from flat (tipped onto a side)
+    is an 'unstable' failure, rad. Transient rocking during impacts is allowed [ours]."""
+    max_lift: float = 0.25
+    """A root link more than this above its resting height (thrown off the table) is an
+    'unstable' failure, m. Hard pushes make links hop a few cm and land flat [ours]."""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.n_links, int) or isinstance(self.n_links, bool) or self.n_links < 2:
+            raise ValueError(f"n_links must be an integer >= 2, got {self.n_links!r}")
+        _check_range("mass_range", self.mass_range)
+        if float(self.mass_range[0]) <= 0:
+            raise ValueError(f"mass_range must be positive, got {self.mass_range!r}")
+        _check_range("friction_range", self.friction_range)
+        if float(self.friction_range[0]) <= 0:
+            raise ValueError(f"friction_range must be positive, got {self.friction_range!r}")
+        _check_range("length_range", self.length_range)
+        if float(self.length_range[0]) <= 0:
+            raise ValueError(f"length_range must be positive, got {self.length_range!r}")
+        # Normalise ranges to float tuples so configs compare and serialise cleanly.
+        for name in ("mass_range", "friction_range", "length_range"):
+            object.__setattr__(self, name, tuple(float(v) for v in getattr(self, name)))
+        for name in (
+            "link_width",
+            "link_height",
+            "joint_gap",
+            "joint_limit",
+            "push_speed_max",
+            "push_offset_fraction",
+            "push_hold_time",
+            "pusher_radius",
+            "pusher_mass",
+            "timestep",
+            "rest_velocity",
+            "settle_time_cap",
+            "max_velocity",
+            "max_tilt",
+            "max_lift",
+            "link_friction",
+        ):
+            _check_positive(name, getattr(self, name))
+        for name in ("init_joint_range", "root_xy_range", "push_ramp_time", "pusher_clearance"):
+            _check_non_negative(name, getattr(self, name))
+        if self.push_offset_fraction > 1:
+            raise ValueError(f"push_offset_fraction must be <= 1, got {self.push_offset_fraction}")
+        if self.init_joint_range > self.joint_limit:
+            raise ValueError(
+                f"init_joint_range {self.init_joint_range} exceeds joint_limit {self.joint_limit}"
+            )
+        if self.pusher_radius >= self.link_height:
+            raise ValueError(f"pusher_radius {self.pusher_radius} must be below link_height")
+        if not isinstance(self.rest_check_steps, int) or self.rest_check_steps < 1:
+            raise ValueError(
+                f"rest_check_steps must be an integer >= 1, got {self.rest_check_steps!r}"
+            )
+
+    @property
+    def push_steps(self) -> tuple[int, int]:
+        """(ramp, hold) durations of the push in physics steps."""
+        return (
+            int(round(self.push_ramp_time / self.timestep)),
+            max(1, int(round(self.push_hold_time / self.timestep))),
+        )
+
+    @property
+    def obs_dim(self) -> int:
+        """Length of a chain configuration: root x, y, yaw and n - 1 joint angles."""
+        return 3 + self.n_links - 1
+
+
+def default_pushes(n_links: int) -> int:
+    """Pushes per episode: 2 for 2 links, 3 for 3 links [code]; n for longer chains [ours]."""
+    return n_links
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    """What the Gymnasium environment adds to the world: episode length and sensing noise."""
+
+    physics: PhysicsConfig = field(default_factory=PhysicsConfig)
+    """The simulated world."""
+    pushes: int | None = None
+    """Pushes per episode K; None for the paper's default (`default_pushes`)."""
+    obs_noise: float = 0.01
+    """Std of Gaussian noise on each observed configuration component (m, rad) [paper]."""
+    action_noise: float = 0.01
+    """Std of Gaussian noise added to each action component before execution [paper]."""
+    pusher: str = "stiff"
+    """Which pusher delivers the pushes; see `masspush.pusher.PUSHERS`."""
+
+    def __post_init__(self) -> None:
+        if self.pushes is None:
+            object.__setattr__(self, "pushes", default_pushes(self.physics.n_links))
+        if not isinstance(self.pushes, int) or isinstance(self.pushes, bool) or self.pushes < 1:
+            raise ValueError(f"pushes must be an integer >= 1, got {self.pushes!r}")
+        _check_non_negative("obs_noise", self.obs_noise)
+        _check_non_negative("action_noise", self.action_noise)
+
+
+def physics_with(physics: PhysicsConfig | None = None, **overrides: Any) -> PhysicsConfig:
+    """A PhysicsConfig with some fields replaced; unknown field names raise a clear error."""
+    base = physics or PhysicsConfig()
+    known = {f.name for f in fields(PhysicsConfig)}
+    unknown = sorted(set(overrides) - known)
+    if unknown:
+        raise ValueError(f"unknown physics parameter(s) {unknown}; known: {sorted(known)}")
+    return replace(base, **overrides)
