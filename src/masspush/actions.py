@@ -71,7 +71,7 @@ def action_to_push(
     a1, a2 = (float(v) for v in check_action(action))
     n = len(lengths)
     u = n * (a2 + 1) / 2
-    link = min(int(math.floor(u)), n - 1)
+    link = min(math.floor(u), n - 1)
     offset = (u - link - 0.5) * physics.push_offset_fraction * lengths[link]
     return PushSpec(
         link=link, offset=offset, side=1 if a1 >= 0 else -1, speed=physics.push_speed_max * abs(a1)

@@ -131,7 +131,7 @@ class ChainBatch:
             code, at_rest = classify(
                 self._qpos[moving], self._qvel[moving], self.layout, self.physics
             )
-            for i, c in zip(moving[code != OK], code[code != OK]):
+            for i, c in zip(moving[code != OK], code[code != OK], strict=True):
                 failures[int(i)] = failure_name(c)
             moving = moving[(code == OK) & ~at_rest]
         for i in moving:

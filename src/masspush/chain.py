@@ -180,7 +180,7 @@ def build_spec(
     )
     x, y, yaw = chain.root_pose
     parent = spec.worldbody
-    for i, (length, mass) in enumerate(zip(chain.lengths, chain.masses)):
+    for i, (length, mass) in enumerate(zip(chain.lengths, chain.masses, strict=True)):
         if i == 0:
             body = parent.add_body(name="link0", pos=[x, y, h / 2], quat=_yaw_quat(yaw))
             body.add_freejoint(name="root")

@@ -53,7 +53,7 @@ class PhysicsConfig:
     n_links: int = 2
     """Number of links; the paper studies 2 and 3 [paper]."""
     mass_range: Range = (0.1, 1.0)
-    """Each link's mass ~ U(mass_range), kg; the paper's ranges are [0.1,1], [1,10], [0.1,10] [paper]."""
+    """Each link's mass ~ U(mass_range), kg; the paper uses [0.1,1], [1,10], [0.1,10] [paper]."""
     friction_range: Range = (0.5, 1.0)
     """Table friction coefficient mu ~ U(friction_range) per episode [paper Sec. 4.2]."""
     length_range: Range = (0.1, 0.15)
@@ -83,7 +83,8 @@ class PhysicsConfig:
     """Time the pusher holds the target speed in contact, s: 10 steps of 1 ms [paper, code]."""
     push_ramp_time: float = 0.005
     """Linear ramp from rest to the target speed before the hold, s. The paper's arm reaches
-    its target speed with time constant 1/kd = 6.6 ms; an instant jump converges badly in dt [notes]."""
+    its target speed with time constant 1/kd = 6.6 ms; an instant jump converges badly in dt
+    [notes]."""
     pusher_radius: float = 0.01
     """Radius of the stiff pusher's tip, m (a vertical capsule, like the dowel of the paper's
     real setup: a ball can ride up a rocking link's edge and throw the chain) [ours]."""
@@ -166,8 +167,8 @@ class PhysicsConfig:
     def push_steps(self) -> tuple[int, int]:
         """(ramp, hold) durations of the push in physics steps."""
         return (
-            int(round(self.push_ramp_time / self.timestep)),
-            max(1, int(round(self.push_hold_time / self.timestep))),
+            round(self.push_ramp_time / self.timestep),
+            max(1, round(self.push_hold_time / self.timestep)),
         )
 
     @property

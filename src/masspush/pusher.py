@@ -42,11 +42,13 @@ class StiffPusher:
     The tip, a vertical capsule of radius `pusher_radius` centred at the links' mid-height,
     slides on two prismatic joints. A capsule rather than a ball: a ball can ride up the
     edge of a link that rocks under the impact and throw the chain; a vertical dowel keeps
-    the contact normal horizontal (docs/simulation.md). It starts `pusher_clearance` from the pushed face, ramps linearly to the
-    target speed over `push_ramp_time`, holds it for `push_hold_time`, and is then parked
-    far away (an instant retraction). The pusher is 10^4 kg behind a velocity servo with a
-    one-step time constant, so a chain's mass barely slows it: scaling every link mass by
-    a common factor leaves the rest pose unchanged, as with a position-controlled arm.
+    the contact normal horizontal (docs/simulation.md). It starts `pusher_clearance` from
+    the pushed face, ramps linearly to the target speed over `push_ramp_time`, holds it
+    for `push_hold_time`, and is then parked far away (an instant retraction).
+
+    The pusher is 10^4 kg behind a velocity servo with a one-step time constant, so a
+    chain's mass barely slows it: scaling every link mass by a common factor leaves the
+    rest pose unchanged, as with a position-controlled arm.
     """
 
     name = "stiff"

@@ -108,7 +108,7 @@ class ChainSim:
         saved = self._state()
         start_time = self.data.time
         failure = self.pusher.deliver(self.model, self.data, geometry, self.physics)
-        push_steps = int(round((self.data.time - start_time) / self.physics.timestep))
+        push_steps = round((self.data.time - start_time) / self.physics.timestep)
         settle_steps = 0
         if failure is None:
             failure, settle_steps = self._settle()
