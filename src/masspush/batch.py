@@ -17,7 +17,7 @@ import mujoco.batch
 import numpy as np
 
 from masspush.actions import PushSpec, action_to_push, push_geometry
-from masspush.chain import ChainLayout, ChainParams, compile_scene
+from masspush.chain import INITIAL_KEY, ChainLayout, ChainParams, compile_scene
 from masspush.config import PhysicsConfig
 from masspush.pusher import StiffPusher
 from masspush.simulate import OK, PushOutcome, classify, failure_name, settle_cap_steps
@@ -41,7 +41,7 @@ class ChainBatch:
         self.models = [compile_scene(c, physics, self.pusher.add_to) for c in chains]
         self.batch = mujoco.batch.Batch(self.models[0], len(chains), nthread)
         self.batch.set_models(self.models)
-        self.batch.reset()
+        self.batch.reset(keyframe=INITIAL_KEY)
         self.layout = ChainLayout.of(self.models[0], physics.n_links)
         pusher_joint = self.models[0].joint("pusher_x")
         self._pusher_q = int(pusher_joint.qposadr[0])

@@ -187,8 +187,7 @@ def build_spec(
             centre = [0.0, 0.0, 0.0]
         else:
             # Child frame at the hinge, in the middle of the gap after the parent's box.
-            # Built straight; the initial joint angles go into qpos0 (`compile_scene`),
-            # so that a hinge's qpos is its angle relative to the parent link.
+            # Built straight: the initial joint angles go into a keyframe (`compile_scene`).
             # The root's frame is at its centre; every other link's frame is at its hinge.
             to_hinge = chain.lengths[i - 1] / 2 + gap / 2 if i == 1 else chain.lengths[i - 1] + gap
             body = parent.add_body(name=f"link{i}", pos=[to_hinge, 0, 0])
@@ -237,10 +236,17 @@ def compile_scene(
     physics: PhysicsConfig,
     add_pusher: Callable[[mujoco.MjSpec, PhysicsConfig], None] | None = None,
 ) -> mujoco.MjModel:
-    """Compile the scene with the chain's initial configuration as the model's reset pose."""
-    model = build_spec(chain, physics, add_pusher).compile()
+    """Compile the scene; keyframe INITIAL_KEY holds the chain's initial configuration.
+
+    MuJoCo measures hinge angles from qpos0, so qpos0 stays straight (angle 0) and the
+    initial angles live in a keyframe; `mj_resetDataKeyframe` / `Batch.reset` load it.
+    """
+    spec = build_spec(chain, physics, add_pusher)
+    spec.add_key(name="initial")
+    model = spec.compile()
     layout = ChainLayout.of(model, chain.n_links)
-    model.qpos0[layout.joint_qpos] = chain.joint_angles
+    model.key_qpos[INITIAL_KEY] = model.qpos0
+    model.key_qpos[INITIAL_KEY, layout.joint_qpos] = chain.joint_angles
     return model
 
 
@@ -252,6 +258,9 @@ def _link_colour(i: int) -> list[float]:
     palette = [(0.12, 0.47, 0.71), (1.0, 0.5, 0.05), (0.17, 0.63, 0.17), (0.84, 0.15, 0.16)]
     return [*palette[i % len(palette)], 1.0]
 
+
+INITIAL_KEY = 0
+"""Index of the keyframe that holds a compiled scene's initial configuration."""
 
 PUSHER_CONTACT_BITS = (_PUSHER_BITS, _LINK_BITS)
 """(contype, conaffinity) for pusher geoms: they touch the chain, never the table."""

@@ -13,7 +13,7 @@ import mujoco
 import numpy as np
 
 from masspush.actions import PushSpec, action_to_push, push_geometry
-from masspush.chain import ChainLayout, ChainParams, compile_scene
+from masspush.chain import INITIAL_KEY, ChainLayout, ChainParams, compile_scene
 from masspush.config import PhysicsConfig
 from masspush.pusher import Pusher, StiffPusher
 
@@ -88,10 +88,11 @@ class ChainSim:
         self.model = compile_scene(chain, physics, self.pusher.add_to)
         self.data = mujoco.MjData(self.model)
         self.layout = ChainLayout.of(self.model, chain.n_links)
+        mujoco.mj_resetDataKeyframe(self.model, self.data, INITIAL_KEY)
         mujoco.mj_forward(self.model, self.data)
         # The chain is built resting exactly on the table; let the soft contacts take
         # its weight so that even q_0 is a true rest pose.
-        self.initial_failure, _ = self._settle()
+        self.initial_failure, _ = self.settle()
 
     def config(self) -> np.ndarray:
         """The chain's current configuration (x, y, yaw, joint angles), noiseless."""
@@ -111,7 +112,7 @@ class ChainSim:
         push_steps = round((self.data.time - start_time) / self.physics.timestep)
         settle_steps = 0
         if failure is None:
-            failure, settle_steps = self._settle()
+            failure, settle_steps = self.settle()
         if failure == "nan":
             self._restore(saved)
         return PushOutcome(
@@ -121,7 +122,8 @@ class ChainSim:
             steps=push_steps + settle_steps,
         )
 
-    def _settle(self) -> tuple[str | None, int]:
+    def settle(self) -> tuple[str | None, int]:
+        """Step until the chain is at rest or fails: (failure or None, steps taken)."""
         k = self.physics.rest_check_steps
         cap = settle_cap_steps(self.physics)
         steps = 0

@@ -1,0 +1,109 @@
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from masspush.chain import ChainParams, link_poses, quat_yaw, sample_chain
+from masspush.config import PhysicsConfig
+from masspush.simulate import ChainSim
+
+
+@pytest.mark.parametrize("n_links", [2, 3, 5])
+def test_planar_kinematics_matches_mujoco(n_links, rng):
+    physics = PhysicsConfig(n_links=n_links)
+    chain = sample_chain(physics, rng)
+    sim = ChainSim(chain, physics)
+    centres, headings = link_poses(sim.config(), chain.lengths, physics.joint_gap)
+    for i in range(n_links):
+        geom = sim.data.geom(f"box{i}")
+        np.testing.assert_allclose(centres[i], geom.xpos[:2], atol=1e-6)
+        heading = math.atan2(geom.xmat[3], geom.xmat[0])
+        assert abs((heading - headings[i] + math.pi) % (2 * math.pi) - math.pi) < 1e-6
+
+
+def test_initial_pose_is_the_sampled_one_and_at_rest(physics3, rng):
+    chain = sample_chain(physics3, rng)
+    sim = ChainSim(chain, physics3)
+    assert sim.initial_failure is None
+    # Settling under gravity moves the chain by well under a millimetre / milliradian.
+    np.testing.assert_allclose(sim.config(), chain.initial_config, atol=1e-3)
+    assert np.abs(sim.data.qvel[: sim.layout.nv]).max() < physics3.rest_velocity
+
+
+def test_sampling_is_within_ranges_and_deterministic(physics3):
+    a = [sample_chain(physics3, np.random.default_rng(7)) for _ in range(2)]
+    assert a[0] == a[1]
+    chains = [sample_chain(physics3, np.random.default_rng(s)) for s in range(50)]
+    masses = np.array([c.masses for c in chains])
+    assert masses.min() >= 0.1 and masses.max() <= 1.0
+    assert all(0.5 <= c.friction <= 1.0 for c in chains)
+    assert all(0.1 <= min(c.lengths) and max(c.lengths) <= 0.15 for c in chains)
+    assert all(max(abs(np.array(c.joint_angles))) <= 0.75 for c in chains)
+
+
+def test_pinning_one_parameter_leaves_the_other_draws_unchanged(physics2):
+    free = sample_chain(physics2, np.random.default_rng(3))
+    pinned = sample_chain(physics2, np.random.default_rng(3), {"masses": [0.2, 0.8]})
+    assert pinned.masses == (0.2, 0.8)
+    assert (pinned.friction, pinned.lengths, pinned.joint_angles) == (
+        free.friction,
+        free.lengths,
+        free.joint_angles,
+    )
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        ({"mass": [1, 1]}, "unknown option"),
+        ({"masses": [1.0, -1.0]}, "masses must be positive"),
+        ({"masses": [1.0]}, "masses must have 2 values"),
+        ({"friction": 0.0}, "friction"),
+        ({"friction": -0.5}, "friction"),
+        ({"lengths": [0.1, 0.0]}, "lengths must be positive"),
+        ({"joint_angles": [2.0]}, "joint limit"),
+        ({"joint_angles": [float("nan")]}, "finite"),
+    ],
+)
+def test_bad_pins_raise_clear_errors(physics2, options, message):
+    with pytest.raises(ValueError, match=message):
+        sample_chain(physics2, np.random.default_rng(0), options)
+
+
+def test_chain_params_validate():
+    with pytest.raises(ValueError, match="at least 2 links"):
+        ChainParams((1.0,), 0.5, (0.1,), (), (0, 0, 0))
+    chain = ChainParams((1.0, 3.0), 0.5, (0.1, 0.1), (0.0,), (0, 0, 0))
+    np.testing.assert_allclose(chain.mass_distribution, [0.25, 0.75])
+
+
+def test_quat_yaw():
+    for yaw in (-3.0, -0.5, 0.0, 1.2, 3.1):
+        q = np.array([math.cos(yaw / 2), 0, 0, math.sin(yaw / 2)])
+        assert quat_yaw(q) == pytest.approx(yaw)
+
+
+def test_self_collision_stops_neighbouring_links_passing_through():
+    """With the joint limit out of the way, only the boxes themselves can stop a fold."""
+    physics = PhysicsConfig(n_links=2, joint_limit=3.1)
+    chain = sample_chain(
+        physics,
+        np.random.default_rng(0),
+        {"joint_angles": [1.2], "lengths": [0.12, 0.12], "root_pose": [0, 0, 0]},
+    )
+    sim = ChainSim(chain, physics)
+    ids = {sim.model.geom("box0").id, sim.model.geom("box1").id}
+    sim.data.qvel[sim.layout.nv - 1] = 30.0  # fold link 1 onto link 0 at 30 rad/s
+    max_angle, deepest, touched = 0.0, 0.0, False
+    for _ in range(400):
+        mujoco.mj_step(sim.model, sim.data)
+        max_angle = max(max_angle, abs(sim.config()[3]))
+        for c in sim.data.contact[: sim.data.ncon]:
+            if {c.geom1, c.geom2} == ids:
+                touched = True
+                deepest = min(deepest, c.dist)
+    assert touched, "the links never touched"
+    # Boxes of width w with a gap w between them meet at pi/2; they must not pass it.
+    assert max_angle < math.pi / 2 + 0.15
+    assert deepest > -0.005

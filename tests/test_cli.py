@@ -1,0 +1,38 @@
+import json
+import subprocess
+import sys
+
+import pytest
+
+from masspush.cli import main
+
+
+def run_cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "masspush.cli", *args], capture_output=True, text=True, timeout=300
+    )
+
+
+def test_demo_prints_each_push_and_rest_pose():
+    result = run_cli("demo", "--links", "3", "--seed", "4")
+    assert result.returncode == 0, result.stderr
+    out = result.stdout
+    assert "mass distribution" in out
+    assert out.count("push ") >= 3 and "q3 =" in out
+
+
+def test_bad_cli_input_is_a_clear_error(capsys):
+    assert main(["demo", "--links", "1"]) == 2
+    assert "n_links must be an integer >= 2" in capsys.readouterr().err
+    assert main(["demo", "--mass-range", "2", "1"]) == 2
+    assert "mass_range is empty" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_bench_sim_reports_all_paths():
+    result = run_cli("bench", "sim", "--chains", "32", "--env-pushes", "10", "--json")
+    assert result.returncode == 0, result.stderr
+    report = json.loads(result.stdout)
+    for key in ("env_pushes_per_s", "batch_pushes_per_s", "ceiling_pushes_per_s"):
+        assert report[key] > 0
+    assert 0 <= report["failure_rate"] < 0.2
