@@ -63,6 +63,22 @@ def cmd_bench_sim(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench_physics(args: argparse.Namespace) -> int:
+    from dataclasses import asdict
+
+    from masspush.validate import format_table, validate_physics
+
+    rows = validate_physics(
+        n_links=args.links,
+        mass_range=tuple(args.mass_range),
+        pushes=args.pushes,
+        seed=args.seed,
+        progress=not args.json,
+    )
+    print(json.dumps([asdict(r) for r in rows]) if args.json else format_table(rows))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="masspush",
@@ -96,6 +112,13 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--threads", type=int, default=None, help="threads (default: all cores)")
     sim.add_argument("--json", action="store_true", help="print one JSON object")
     sim.set_defaults(func=cmd_bench_sim)
+    phys = bench_sub.add_parser(
+        "physics", help="rest-pose convergence in the time step, and chaotic sensitivity"
+    )
+    chain_args(phys)
+    phys.add_argument("--pushes", type=int, default=64, help="random single pushes")
+    phys.add_argument("--json", action="store_true", help="print JSON")
+    phys.set_defaults(func=cmd_bench_physics)
     return parser
 
 

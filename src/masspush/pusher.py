@@ -71,9 +71,8 @@ class StiffPusher:
             conaffinity=conaffinity,
             mass=0,
             rgba=[0.9, 0.3, 0.1, 1],
-            # A stiffer contact than MuJoCo's default (0.02 s) keeps the tip from sinking
-            # ~2 mm into the link [notes]; 5 ms is still >= 2 timesteps, as MuJoCo requires.
-            solref=[max(0.005, 2 * physics.timestep), 1.0],
+            # MuJoCo needs a contact time constant of at least two steps.
+            solref=[max(physics.pusher_contact_time, 2 * physics.timestep), 1.0],
         )
         kv = physics.pusher_mass / physics.timestep
         for name in ("pusher_x", "pusher_y"):
