@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import time
+from collections import Counter
 from dataclasses import asdict, dataclass, replace
 
 import numpy as np
@@ -37,6 +38,10 @@ class SimBenchmark:
     batch_fraction_of_ceiling: float
     failure_rate: float
     """Share of batch pushes that failed (nan / unstable / timeout)."""
+    failures: dict[str, int]
+    """Failed batch pushes by reason."""
+    pushes: int
+    """Pushes in the batch run."""
 
     def table(self) -> str:
         rows = [
@@ -49,7 +54,8 @@ class SimBenchmark:
             ("ceiling: raw mj_step, all threads", f"{self.ceiling_steps_per_s:8.0f} steps/s"),
             ("ceiling in pushes", f"{self.ceiling_pushes_per_s:8.1f} pushes/s"),
             ("batch (pushes only) / ceiling", f"{self.batch_fraction_of_ceiling:8.2f}"),
-            ("failed pushes", f"{100 * self.failure_rate:8.2f} %"),
+            ("batch pushes", f"{self.pushes:8d}"),
+            ("failed pushes", f"{100 * self.failure_rate:8.2f} %  {self.failures}"),
         ]
         width = max(len(k) for k, _ in rows)
         return "\n".join(f"{k:<{width}}  {v}" for k, v in rows)
@@ -89,13 +95,14 @@ def bench_sim(
     t0 = time.perf_counter()
     batch = ChainBatch(chains, physics, nthread=threads)
     t_built = time.perf_counter()
-    steps, pushes, failures = 0, 0, 0
+    steps, pushes, failures = 0, 0, Counter()
     for a in tqdm(actions, desc="batch path", disable=not progress):
         for outcome in batch.push(a):
             if outcome is not None:
                 steps += outcome.steps
                 pushes += 1
-                failures += outcome.failure is not None
+                if outcome.failure is not None:
+                    failures[outcome.failure] += 1
     t_end = time.perf_counter()
     steps_per_push = steps / max(pushes, 1)
 
@@ -113,7 +120,9 @@ def bench_sim(
         ceiling_steps_per_s=ceiling,
         ceiling_pushes_per_s=ceiling_pushes,
         batch_fraction_of_ceiling=batch_rate_stepping / ceiling_pushes,
-        failure_rate=failures / max(pushes, 1),
+        failure_rate=sum(failures.values()) / max(pushes, 1),
+        failures=dict(failures),
+        pushes=pushes,
     )
 
 
