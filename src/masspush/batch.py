@@ -67,49 +67,58 @@ class ChainBatch:
 
         Returns one outcome per chain, None for chains skipped after an earlier failure.
         """
-        actions = np.asarray(actions, dtype=float)
-        if actions.shape != (self.nsim, 2):
-            raise ValueError(f"actions must have shape ({self.nsim}, 2), got {actions.shape}")
-        ids = np.flatnonzero(~self.failed)
-        specs: dict[int, PushSpec] = {}
+        ids, specs, controls = self.prepare_push(actions)
         if ids.size == 0:
             return [None] * self.nsim
-        configs = self.configs()
-        profile = self.pusher.speed_profile(self.physics)
-        controls = np.zeros((ids.size, profile.size, self._ctrl.shape[1]))
-        for row, i in enumerate(ids):
-            chain = self.chains[i]
-            spec = action_to_push(actions[i], chain.lengths, self.physics)
-            geometry = push_geometry(spec, configs[i], chain.lengths, self.physics)
-            specs[int(i)] = spec
-            self._qpos[i, self._pusher_q : self._pusher_q + 2] = self.pusher.start_qpos(
-                geometry, self.physics
-            )
-            self._qvel[i, self._pusher_v : self._pusher_v + 2] = 0.0
-            controls[row, :, :2] = self.pusher.controls(geometry, self.physics)
         saved = self.batch.state[ids].copy()
-        self.batch.rollout(
-            profile.size, control=controls, record=(mujoco.mjtState.mjSTATE_TIME,), ids=ids
-        )
-        # Retract: park the pusher, at rest, no command.
-        self._qpos[ids, self._pusher_q : self._pusher_q + 2] = 0.0
-        self._qvel[ids, self._pusher_v : self._pusher_v + 2] = 0.0
-        self._ctrl[ids] = 0.0
+        self.deliver(ids, controls)
         failures, steps = self._settle(ids)
         nan = [i for i in ids if failures[i] == "nan"]
         if nan:
             self.batch.state[nan] = saved[np.isin(ids, nan)]
         outcomes: list[PushOutcome | None] = [None] * self.nsim
-        for i in ids:
+        for row, i in enumerate(ids):
             if failures[i] is not None:
                 self.failed[i] = True
             outcomes[i] = PushOutcome(
-                push=specs[int(i)],
+                push=specs[row],
                 failure=failures[i],
                 settle_time=steps[i] * self.physics.timestep,
-                steps=profile.size + steps[i],
+                steps=controls.shape[1] + steps[i],
             )
         return outcomes
+
+    def prepare_push(self, actions: np.ndarray) -> tuple[np.ndarray, list[PushSpec], np.ndarray]:
+        """Place the pusher for each live chain's push: (chain ids, pushes, (ids, steps, nu)
+        velocity commands). The first phase of `push`, public for benchmarks."""
+        actions = np.asarray(actions, dtype=float)
+        if actions.shape != (self.nsim, 2):
+            raise ValueError(f"actions must have shape ({self.nsim}, 2), got {actions.shape}")
+        ids = np.flatnonzero(~self.failed)
+        configs = self.configs()
+        profile = self.pusher.speed_profile(self.physics)
+        controls = np.zeros((ids.size, profile.size, self._ctrl.shape[1]))
+        specs = []
+        for row, i in enumerate(ids):
+            chain = self.chains[i]
+            spec = action_to_push(actions[i], chain.lengths, self.physics)
+            geometry = push_geometry(spec, configs[i], chain.lengths, self.physics)
+            specs.append(spec)
+            self._qpos[i, self._pusher_q : self._pusher_q + 2] = self.pusher.start_qpos(
+                geometry, self.physics
+            )
+            self._qvel[i, self._pusher_v : self._pusher_v + 2] = 0.0
+            controls[row, :, :2] = self.pusher.controls(geometry, self.physics)
+        return ids, specs, controls
+
+    def deliver(self, ids: np.ndarray, controls: np.ndarray) -> None:
+        """Run the pushes' open-loop commands in one rollout, then retract the pusher."""
+        self.batch.rollout(
+            controls.shape[1], control=controls, record=(mujoco.mjtState.mjSTATE_TIME,), ids=ids
+        )
+        self._qpos[ids, self._pusher_q : self._pusher_q + 2] = 0.0
+        self._qvel[ids, self._pusher_v : self._pusher_v + 2] = 0.0
+        self._ctrl[ids] = 0.0
 
     def _settle(self, ids: np.ndarray) -> tuple[list[str | None], np.ndarray]:
         """Step the chains `ids` until each is at rest or fails; (failure per chain, steps)."""
