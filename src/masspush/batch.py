@@ -51,7 +51,7 @@ class ChainBatch:
         self._ctrl = self.batch.bind("ctrl")
         self.failed = np.zeros(len(chains), dtype=bool)
         """Chains whose simulation has failed; they are not pushed again."""
-        initial, _ = self._settle(np.arange(len(chains)))
+        initial, _ = self.settle(np.arange(len(chains)))
         self.initial_failures = initial
 
     @property
@@ -72,7 +72,7 @@ class ChainBatch:
             return [None] * self.nsim
         saved = self.batch.state[ids].copy()
         self.deliver(ids, controls)
-        failures, steps = self._settle(ids)
+        failures, steps = self.settle(ids)
         nan = [i for i in ids if failures[i] == "nan"]
         if nan:
             self.batch.state[nan] = saved[np.isin(ids, nan)]
@@ -120,7 +120,7 @@ class ChainBatch:
         self._qvel[ids, self._pusher_v : self._pusher_v + 2] = 0.0
         self._ctrl[ids] = 0.0
 
-    def _settle(self, ids: np.ndarray) -> tuple[list[str | None], np.ndarray]:
+    def settle(self, ids: np.ndarray) -> tuple[list[str | None], np.ndarray]:
         """Step the chains `ids` until each is at rest or fails; (failure per chain, steps)."""
         k = self.physics.rest_check_steps
         cap = settle_cap_steps(self.physics)
