@@ -122,13 +122,16 @@ def park(model: mujoco.MjModel, data: mujoco.MjData) -> None:
     data.ctrl[:2] = 0.0
 
 
-PUSHERS = {"stiff": StiffPusher}
+PUSHERS = ("stiff", "kuka", "ur10")
 """Pusher names accepted by the environment and the CLI."""
 
 
 def make_pusher(name: str) -> Pusher:
     """The pusher called `name`, or a ValueError listing the known ones."""
-    try:
-        return PUSHERS[name]()
-    except KeyError:
-        raise ValueError(f"unknown pusher {name!r}; known pushers: {sorted(PUSHERS)}") from None
+    if name == "stiff":
+        return StiffPusher()
+    if name in PUSHERS:
+        from masspush.arm import ArmPusher
+
+        return ArmPusher(name)
+    raise ValueError(f"unknown pusher {name!r}; known pushers: {list(PUSHERS)}")

@@ -17,9 +17,10 @@ from masspush.chain import INITIAL_KEY, ChainLayout, ChainParams, compile_scene
 from masspush.config import PhysicsConfig
 from masspush.pusher import Pusher, StiffPusher
 
-FAILURES = ("nan", "unstable", "timeout")
+FAILURES = ("nan", "unstable", "timeout", "arm_contact", "unreachable")
 """Why a push can fail: the simulation diverged (NaN/inf); the chain flew off the table,
-reached an absurd speed or came to rest tipped on its side; or it still moved at the cap."""
+reached an absurd speed or came to rest tipped on its side; it still moved at the cap; an
+arm part other than the end-effector touched the chain; the arm could not reach the push."""
 
 # Codes of `classify`, vectorised over many simulations.
 OK, NAN, UNSTABLE = 0, 1, 2
