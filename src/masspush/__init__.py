@@ -5,6 +5,13 @@ Importing the package registers the Gymnasium environment "masspush/Chain-v0".
 
 from __future__ import annotations
 
+import os
+
+# MuJoCo picks its OpenGL backend when first imported; without a display, render headless
+# through EGL (no extra packages needed) unless the user chose a backend.
+if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
+    os.environ["MUJOCO_GL"] = "egl"
+
 import gymnasium as gym
 
 from masspush.batch import ChainBatch

@@ -29,6 +29,7 @@ import numpy as np
 from masspush.actions import PushGeometry
 from masspush.config import PhysicsConfig
 from masspush.osc import KD, KP, desired_acceleration, osc_torque, rotation_error
+from masspush.pusher import StepHook
 
 ASSETS = Path(__file__).parent / "assets"
 ARM_PARK = np.array([-1000.0, -1000.0, 0.0])
@@ -116,6 +117,7 @@ class ArmPusher:
         self.kp, self.kd = kp, kd
         self.prefix = f"{arm}/"
         self.trace = PushTrace()
+        self._on_step: StepHook | None = None
         self._model: mujoco.MjModel | None = None  # the model the handles belong to
         self._handles: _Handles | None = None
         self._reference_q: np.ndarray | None = None
@@ -158,9 +160,15 @@ class ArmPusher:
 
     # --- one push ---------------------------------------------------------------------
     def deliver(
-        self, model: mujoco.MjModel, data: mujoco.MjData, push: PushGeometry, physics: PhysicsConfig
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        push: PushGeometry,
+        physics: PhysicsConfig,
+        on_step: StepHook | None = None,
     ) -> str | None:
         self.trace = PushTrace()
+        self._on_step = on_step
         if push.speed <= 0.0:
             return None  # a zero-speed push touches nothing
         h = self._h(model)
@@ -265,6 +273,8 @@ class ArmPusher:
         data.ctrl[h.act] = osc_torque(jac, mass, xdd)
         touching, arm_touch = self._contacts(data, h)
         mujoco.mj_step2(model, data)
+        if self._on_step is not None:
+            self._on_step()
         ratio = np.abs(data.qfrc_actuator[h.dadr]) / h.torque_limit
         self.trace.max_torque_ratio = max(self.trace.max_torque_ratio, float(ratio.max()))
         return tip_velocity, touching, arm_touch

@@ -164,6 +164,10 @@ def build_spec(
         mujoco.mjtDisableBit.mjDSBL_FILTERPARENT | mujoco.mjtDisableBit.mjDSBL_AUTORESET
     )
 
+    # Parked pushers sit ~1 km away; without fixed statistics the renderer's clipping
+    # planes, which scale with the model's extent, would clip the whole scene.
+    spec.stat.extent = 2.0
+    spec.stat.center = [0.0, 0.0, 0.0]
     spec.worldbody.add_light(
         name="sun", pos=[0, 0, 3], dir=[0, 0, -1], type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL
     )

@@ -79,6 +79,26 @@ def cmd_bench_physics(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_render(args: argparse.Namespace) -> int:
+    from masspush.render import render_episode
+
+    result = render_episode(
+        args.setting,
+        pusher=args.pusher,
+        out=args.out,
+        seed=args.seed,
+        width=args.width,
+        height=args.height,
+        stills=args.png,
+    )
+    print(f"wrote {result.video} ({result.frames} frames)")
+    for path in result.stills:
+        print(f"wrote {path}")
+    if any(result.failures):
+        print(f"failed pushes: {result.failures}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="masspush",
@@ -102,6 +122,16 @@ def build_parser() -> argparse.ArgumentParser:
     chain_args(demo)
     demo.add_argument("--pushes", type=int, default=None, help="pushes (default: one per link)")
     demo.set_defaults(func=cmd_demo)
+
+    render = sub.add_parser("render", help="render an episode to a video (MP4 or GIF)")
+    render.add_argument("--setting", default="2link-0.1-1", help="named setting")
+    render.add_argument("--pusher", default="stiff", help="stiff, kuka or ur10")
+    render.add_argument("--out", default="episode.mp4", help="output .mp4 or .gif")
+    render.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    render.add_argument("--width", type=int, default=640)
+    render.add_argument("--height", type=int, default=480)
+    render.add_argument("--png", action="store_true", help="also write one still per rest pose")
+    render.set_defaults(func=cmd_render)
 
     bench = sub.add_parser("bench", help="benchmarks")
     bench_sub = bench.add_subparsers(dest="what", required=True)

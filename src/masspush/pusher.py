@@ -8,6 +8,7 @@ the same protocol, so the environment and everything downstream take any of them
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Protocol
 
 import mujoco
@@ -22,6 +23,9 @@ from masspush.config import PhysicsConfig
 PARK_XY = np.array([1000.0, 1000.0])
 
 
+StepHook = Callable[[], None]
+
+
 class Pusher(Protocol):
     """Delivers pushes in a MuJoCo scene that also holds the chain."""
 
@@ -31,9 +35,16 @@ class Pusher(Protocol):
         """Add the pusher's bodies, joints and actuators to a scene being built."""
 
     def deliver(
-        self, model: mujoco.MjModel, data: mujoco.MjData, push: PushGeometry, physics: PhysicsConfig
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        push: PushGeometry,
+        physics: PhysicsConfig,
+        on_step: StepHook | None = None,
     ) -> str | None:
-        """Execute one push on a chain at rest; return None, or a failure reason."""
+        """Execute one push on a chain at rest; return None, or a failure reason.
+
+        `on_step`, if given, is called after every physics step (to record video)."""
 
 
 class StiffPusher:
@@ -97,7 +108,12 @@ class StiffPusher:
         return self.speed_profile(physics)[:, None] * (push.speed * push.direction)[None, :]
 
     def deliver(
-        self, model: mujoco.MjModel, data: mujoco.MjData, push: PushGeometry, physics: PhysicsConfig
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        push: PushGeometry,
+        physics: PhysicsConfig,
+        on_step: StepHook | None = None,
     ) -> str | None:
         qadr, dadr = _pusher_addresses(model)
         data.qpos[qadr : qadr + 2] = self.start_qpos(push, physics)
@@ -105,6 +121,8 @@ class StiffPusher:
         for u in self.controls(push, physics):
             data.ctrl[:2] = u
             mujoco.mj_step(model, data)
+            if on_step is not None:
+                on_step()
         park(model, data)
         return None
 

@@ -15,7 +15,7 @@ import numpy as np
 from masspush.actions import PushSpec, action_to_push, push_geometry
 from masspush.chain import INITIAL_KEY, ChainLayout, ChainParams, compile_scene
 from masspush.config import PhysicsConfig
-from masspush.pusher import Pusher, StiffPusher
+from masspush.pusher import Pusher, StepHook, StiffPusher
 
 FAILURES = ("nan", "unstable", "timeout", "arm_contact", "unreachable")
 """Why a push can fail: the simulation diverged (NaN/inf); the chain flew off the table,
@@ -86,6 +86,10 @@ class ChainSim:
         self.chain = chain
         self.physics = physics
         self.pusher = pusher or StiffPusher()
+        self.on_step: StepHook | None = None
+        """Called after every physics step, if set (to record video)."""
+        self.phase = "settle"
+        """"push" while the pusher acts, "settle" while the chain slides to rest."""
         self.model = compile_scene(chain, physics, self.pusher.add_to)
         self.data = mujoco.MjData(self.model)
         self.layout = ChainLayout.of(self.model, chain.n_links)
@@ -109,7 +113,9 @@ class ChainSim:
         geometry = push_geometry(spec, self.config(), self.chain.lengths, self.physics)
         saved = self._state()
         start_time = self.data.time
-        failure = self.pusher.deliver(self.model, self.data, geometry, self.physics)
+        self.phase = "push"
+        failure = self.pusher.deliver(self.model, self.data, geometry, self.physics, self.on_step)
+        self.phase = "settle"
         push_steps = round((self.data.time - start_time) / self.physics.timestep)
         settle_steps = 0
         if failure is None:
@@ -131,6 +137,8 @@ class ChainSim:
         while steps < cap:
             for _ in range(k):
                 mujoco.mj_step(self.model, self.data)
+                if self.on_step is not None:
+                    self.on_step()
             steps += k
             code, at_rest = classify(self.data.qpos, self.data.qvel, self.layout, self.physics)
             if code[0] != OK:
