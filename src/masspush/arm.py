@@ -181,10 +181,8 @@ class ArmPusher:
         standoff = touch - direction * run_up
 
         # 1. Base next to the link, facing the push direction, on the table.
-        data.mocap_pos[h.mocap] = contact - direction * self.arm.base_distance
-        data.mocap_pos[h.mocap, 2] = 0.0
         yaw = math.atan2(direction[1], direction[0])
-        data.mocap_quat[h.mocap] = [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)]
+        self.place_base(model, data, contact - direction * self.arm.base_distance, yaw)
         # 2. Tip at the standoff point, at rest.
         q, error = self._ik(model, data, h, standoff, target_r, touch - 0.03 * direction)
         self.trace.ik_error = error
@@ -230,6 +228,32 @@ class ArmPusher:
         # 5. Out of the way.
         self.park(model, data)
         return failure
+
+    def place_base(self, model: mujoco.MjModel, data: mujoco.MjData, pos, yaw: float) -> None:
+        """Put the arm's base at `pos` on the table, facing `yaw`."""
+        h = self._h(model)
+        data.mocap_pos[h.mocap] = [pos[0], pos[1], 0.0]
+        data.mocap_quat[h.mocap] = [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)]
+
+    def move_to(
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        target: np.ndarray,
+        target_r: np.ndarray,
+        duration: float,
+    ) -> tuple[float, float]:
+        """Drive the tip to a pose under OSC with zero target velocity for `duration` s;
+        return the remaining (position error in m, orientation error in rad)."""
+        h = self._h(model)
+        for _ in range(round(duration / model.opt.timestep)):
+            self._control(model, data, h, target, target_r, np.zeros(6))
+        mujoco.mj_forward(model, data)
+        pos_err = float(np.linalg.norm(target - data.site_xpos[h.site]))
+        rot_err = float(
+            np.linalg.norm(rotation_error(target_r, data.site_xmat[h.site].reshape(3, 3)))
+        )
+        return pos_err, rot_err
 
     def park(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         """Move the base far from the chain and stop the arm there."""

@@ -1,0 +1,131 @@
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from masspush.arm import ARMS, ArmPusher, tool_rotation
+from masspush.chain import link_poses, sample_chain
+from masspush.config import PhysicsConfig
+from masspush.pusher import make_pusher
+from masspush.simulate import ChainSim
+
+STRAIGHT = {"joint_angles": [0.0], "lengths": [0.12, 0.12], "root_pose": [0.0, 0.0, 0.0]}
+ARM_NAMES = sorted(ARMS)
+
+
+def sim_with(pusher, masses=(0.3, 0.3), **pins):
+    physics = PhysicsConfig(n_links=2)
+    options = {**STRAIGHT, "masses": list(masses), "friction": 0.7, **pins}
+    chain = sample_chain(physics, np.random.default_rng(0), options)
+    return ChainSim(chain, physics, make_pusher(pusher) if isinstance(pusher, str) else pusher)
+
+
+@pytest.mark.parametrize("arm", ARM_NAMES)
+def test_controller_reaches_a_target_pose(arm):
+    pusher = ArmPusher(arm)
+    sim = sim_with(pusher)
+    direction = np.array([1.0, 0.0, 0.0])
+    target_r = tool_rotation(direction, pusher.arm.tool_pitch)
+    base = np.array([2.0, 2.0])  # away from the chain
+    pusher.place_base(sim.model, sim.data, base, 0.0)
+    start = np.array([base[0] + pusher.arm.base_distance - 0.05, base[1], 0.05])
+    q, error = pusher._ik(sim.model, sim.data, pusher._h(sim.model), start, target_r, start)
+    assert error < 1e-3
+    sim.data.qpos[pusher._h(sim.model).qadr] = q
+    # Move 4 cm sideways and 3 cm up, with a 10 degree turn, from rest.
+    target = start + np.array([0.0, 0.04, 0.03])
+    turned = tool_rotation(np.array([math.cos(0.17), math.sin(0.17), 0.0]), pusher.arm.tool_pitch)
+    pos_err, rot_err = pusher.move_to(sim.model, sim.data, target, turned, duration=0.5)
+    assert pos_err < 0.003  # a few millimetres
+    assert math.degrees(rot_err) < 2.0  # a few degrees
+    assert pusher.trace.max_torque_ratio <= 1.0 + 1e-9
+
+
+@pytest.mark.parametrize("arm", ARM_NAMES)
+@pytest.mark.parametrize("a1", [0.1, 0.2])
+def test_tip_reaches_the_commanded_speed_on_a_light_chain(arm, a1):
+    sim = sim_with(arm, masses=(0.1, 0.1))
+    outcome = sim.push(np.array([a1, -0.5]))
+    trace = sim.pusher.trace
+    assert outcome.failure is None and trace.contact_step is not None
+    commanded = outcome.push.speed
+    at_contact = trace.tip_speed[trace.contact_step]
+    assert at_contact == pytest.approx(commanded, rel=0.10)  # stated tolerance: 10 %
+    assert max(trace.tip_speed) <= 1.10 * commanded
+
+
+def _motion(pusher, action):
+    sim = sim_with(pusher, masses=(0.3, 0.3), joint_angles=[0.4])
+    physics = sim.physics
+    before = link_poses(sim.config(), sim.chain.lengths, physics.joint_gap)
+    outcome = sim.push(np.array(action))
+    assert outcome.failure is None, outcome.failure
+    after = link_poses(sim.config(), sim.chain.lengths, physics.joint_gap)
+    link = outcome.push.link
+    h = before[1][link]
+    normal = np.array([-math.sin(h), math.cos(h)]) * outcome.push.side
+    shift = (after[0][link] - before[0][link]) @ normal
+    turn = (after[1][link] - before[1][link] + math.pi) % (2 * math.pi) - math.pi
+    return shift, turn
+
+
+@pytest.mark.parametrize("arm", ARM_NAMES)
+@pytest.mark.parametrize("action", [[0.2, -0.8], [-0.2, -0.2], [0.25, 0.3], [-0.3, 0.85]])
+def test_arm_and_stiff_pushes_move_the_chain_the_same_way(arm, action):
+    stiff_shift, stiff_turn = _motion("stiff", action)
+    arm_shift, arm_turn = _motion(arm, action)
+    assert stiff_shift > 0 and arm_shift > 0  # both pushed the link away from the pusher
+    if abs(stiff_turn) > 0.05 and abs(arm_turn) > 0.05:
+        assert np.sign(stiff_turn) == np.sign(arm_turn)
+
+
+@pytest.mark.parametrize("arm", ARM_NAMES)
+def test_with_an_arm_the_mass_scale_matters(arm):
+    """A torque-limited arm is slowed by a heavy chain: x10 masses move it less."""
+    light, heavy = sim_with(arm, masses=(0.2, 0.4)), sim_with(arm, masses=(2.0, 4.0))
+    x0 = light.config()
+    for sim in (light, heavy):
+        assert sim.push(np.array([0.3, -0.5])).failure is None
+    light_travel = np.linalg.norm(light.config()[:2] - x0[:2])
+    heavy_travel = np.linalg.norm(heavy.config()[:2] - x0[:2])
+    assert heavy_travel < 0.8 * light_travel, (light_travel, heavy_travel)
+
+
+@pytest.mark.parametrize("arm", ARM_NAMES)
+def test_torque_limits_hold_in_hard_pushes(arm):
+    sim = sim_with(arm, masses=(5.0, 5.0))
+    h = sim.pusher._h(sim.model)
+    peak = np.zeros(6)
+
+    def watch():
+        peak[:] = np.maximum(peak, np.abs(sim.data.qfrc_actuator[h.dadr]))
+
+    sim.on_step = watch
+    sim.push(np.array([1.0, -0.5]))
+    assert sim.pusher.trace.max_torque_ratio == pytest.approx(1.0, abs=1e-6)  # limits reached
+    assert np.all(peak <= h.torque_limit * (1 + 1e-9))
+
+
+def test_an_arm_link_touching_the_chain_is_detected():
+    pusher = ArmPusher("kuka")
+    sim = sim_with(pusher)
+    h = pusher._h(sim.model)
+    # Stand the base right on the chain: the base and lower links overlap link 0.
+    pusher.place_base(sim.model, sim.data, sim.config()[:2], 0.0)
+    mujoco.mj_forward(sim.model, sim.data)
+    assert pusher._contacts(sim.data, h) == (False, True)
+
+
+def test_zero_speed_push_touches_nothing():
+    sim = sim_with("kuka")
+    before = sim.config()
+    assert sim.push(np.array([0.0, 0.0])).failure is None
+    np.testing.assert_allclose(sim.config(), before, atol=1e-4)
+
+
+def test_unknown_arm_is_refused():
+    with pytest.raises(ValueError, match="unknown arm"):
+        ArmPusher("puma")
+    with pytest.raises(ValueError, match="unknown pusher"):
+        make_pusher("puma")
