@@ -45,3 +45,15 @@ def test_task_inertia_and_torque():
     # With J = I the law reduces to tau = M xdd.
     xdd = rng.normal(size=6)
     np.testing.assert_allclose(osc_torque(np.eye(6), mass, xdd), mass @ xdd, rtol=1e-4)
+
+
+def test_scaling_to_limits_keeps_direction_and_respects_every_limit():
+    from masspush.osc import scale_to_limits
+
+    tau = np.array([300.0, -50.0, 10.0])
+    headroom = np.array([150.0, 100.0, 100.0])
+    scaled = scale_to_limits(tau, headroom)
+    np.testing.assert_allclose(scaled, tau / 2)  # direction kept, joint 0 exactly at its limit
+    assert np.all(np.abs(scaled) <= headroom + 1e-12)
+    np.testing.assert_array_equal(scale_to_limits(tau / 10, headroom), tau / 10)  # untouched
+    assert np.all(scale_to_limits(tau, np.array([-1.0, 5.0, 5.0])) == 0)  # no headroom: no push

@@ -28,7 +28,14 @@ import numpy as np
 
 from masspush.actions import PushGeometry
 from masspush.config import PhysicsConfig
-from masspush.osc import KD, KP, desired_acceleration, osc_torque, rotation_error
+from masspush.osc import (
+    KD,
+    KP,
+    desired_acceleration,
+    osc_torque,
+    rotation_error,
+    scale_to_limits,
+)
 from masspush.pusher import StepHook
 
 ASSETS = Path(__file__).parent / "assets"
@@ -294,7 +301,8 @@ class ArmPusher:
             self.kp,
             self.kd,
         )
-        data.ctrl[h.act] = osc_torque(jac, mass, xdd)
+        headroom = h.torque_limit - np.abs(data.qfrc_gravcomp[h.dadr])
+        data.ctrl[h.act] = scale_to_limits(osc_torque(jac, mass, xdd), headroom)
         touching, arm_touch = self._contacts(data, h)
         mujoco.mj_step2(model, data)
         if self._on_step is not None:

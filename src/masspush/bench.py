@@ -147,3 +147,132 @@ def _raw_step_rate(chains, physics: PhysicsConfig, threads: int, actions: np.nda
         failures, _ = batch.settle(ids)
         batch.failed[ids] = [failures[i] is not None for i in ids]
     return stepped / elapsed
+
+
+@dataclass(frozen=True)
+class PusherBenchmark:
+    """One pusher: speed through the environment, failures, and what a mass scale does."""
+
+    pusher: str
+    n_links: int
+    pushes: int
+    pushes_per_s: float
+    """Through `ChainEnv.step` (one core, noise on): push, arm control, slide to rest."""
+    failures: dict[str, int]
+    scale_pairs: int
+    """(chain, push) pairs compared with all masses x10."""
+    scale_position_median_mm: float
+    scale_angle_median_rad: float
+    scale_angle_p90_rad: float
+    tip_speed: dict[float, float]
+    """Commanded push speed -> tip speed at contact on a light chain (arms only), m/s."""
+
+
+TRACKED_SPEEDS = (0.5, 1.0, 2.0, 3.0, 4.0, 5.0)
+
+
+def _tip_speeds(name: str, n_links: int) -> dict[float, float]:
+    """Tip speed at contact for each commanded speed, pushing a light straight chain."""
+    from masspush.pusher import make_pusher
+    from masspush.simulate import ChainSim
+
+    if name == "stiff":
+        return {}
+    physics = replace(PhysicsConfig(), n_links=n_links)
+    pins = {
+        "masses": [0.1] * n_links,
+        "joint_angles": [0.0] * (n_links - 1),
+        "root_pose": [0.0, 0.0, 0.0],
+    }
+    speeds = {}
+    for v in TRACKED_SPEEDS:
+        chain = sample_chain(physics, np.random.default_rng(0), pins)
+        sim = ChainSim(chain, physics, make_pusher(name))
+        sim.push(np.array([v / physics.push_speed_max, -0.5]))
+        trace = sim.pusher.trace
+        speeds[v] = trace.tip_speed[trace.contact_step] if trace.contact_step is not None else 0.0
+    return speeds
+
+
+def bench_pushers(
+    n_links: int = 2,
+    pushes: int = 60,
+    pairs: int = 40,
+    pushers: tuple[str, ...] = ("stiff", "kuka", "ur10"),
+    seed: int = 0,
+    progress: bool = True,
+) -> list[PusherBenchmark]:
+    """Pushes per second and the effect of scaling every mass by 10, for each pusher."""
+    from masspush.pusher import make_pusher
+    from masspush.simulate import ChainSim
+
+    results = []
+    for name in pushers:
+        env = ChainEnv(n_links=n_links, pusher=name)
+        env.reset(seed=seed)
+        env.action_space.seed(seed)
+        failures: Counter = Counter()
+        t0 = time.perf_counter()
+        for _ in tqdm(range(pushes), desc=f"{name}: pushes", disable=not progress):
+            _, _, terminated, _, info = env.step(env.action_space.sample())
+            if info["failure"]:
+                failures[info["failure"]] += 1
+            if terminated:
+                env.reset()
+        rate = pushes / (time.perf_counter() - t0)
+
+        physics = replace(PhysicsConfig(), n_links=n_links)
+        rng = np.random.default_rng(seed)
+        pusher = make_pusher(name)
+        positions, angles = [], []
+        for _ in tqdm(range(pairs), desc=f"{name}: x10 masses", disable=not progress):
+            chain = sample_chain(physics, rng)
+            action = rng.uniform(-1, 1, size=2)
+            heavy = replace(chain, masses=tuple(10 * m for m in chain.masses))
+            poses = []
+            for c in (chain, heavy):
+                sim = ChainSim(c, replace(physics, mass_range=(0.1, 10.0)), pusher)
+                poses.append(None if sim.push(action).failure else sim.config())
+            if poses[0] is None or poses[1] is None:
+                continue
+            d = poses[1] - poses[0]
+            positions.append(1000 * np.linalg.norm(d[:2]))
+            angles.append(np.abs((d[2:] + np.pi) % (2 * np.pi) - np.pi).max())
+        results.append(
+            PusherBenchmark(
+                pusher=name,
+                n_links=n_links,
+                pushes=pushes,
+                pushes_per_s=rate,
+                failures=dict(failures),
+                scale_pairs=len(angles),
+                scale_position_median_mm=float(np.median(positions)),
+                scale_angle_median_rad=float(np.median(angles)),
+                scale_angle_p90_rad=float(np.percentile(angles, 90)),
+                tip_speed=_tip_speeds(name, n_links),
+            )
+        )
+    return results
+
+
+def pushers_table(results: list[PusherBenchmark]) -> str:
+    lines = [
+        "| pusher | links | pushes/s (env, 1 core) | failed pushes | pairs | x10 masses: "
+        "position median (mm) | angle median / p90 (rad) |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r in results:
+        failed = ", ".join(f"{k} {v}" for k, v in sorted(r.failures.items())) or "none"
+        lines.append(
+            f"| {r.pusher} | {r.n_links} | {r.pushes_per_s:.1f} | {failed} (of {r.pushes}) "
+            f"| {r.scale_pairs} | {r.scale_position_median_mm:.1f} "
+            f"| {r.scale_angle_median_rad:.3f} / {r.scale_angle_p90_rad:.3f} |"
+        )
+    arms = [r for r in results if r.tip_speed]
+    if arms:
+        header = " | ".join(f"{r.pusher} tip speed at contact (m/s)" for r in arms)
+        lines += ["", f"| commanded speed (m/s) | {header} |", "|---|" + "---|" * len(arms)]
+        for v in TRACKED_SPEEDS:
+            cells = " | ".join(f"{r.tip_speed[v]:.2f}" for r in arms)
+            lines.append(f"| {v:g} | {cells} |")
+    return "\n".join(lines)

@@ -63,6 +63,24 @@ def cmd_bench_sim(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench_pushers(args: argparse.Namespace) -> int:
+    from dataclasses import asdict
+
+    from masspush.bench import bench_pushers, pushers_table
+
+    pushers = tuple(args.pushers.split(","))
+    results = bench_pushers(
+        n_links=args.links,
+        pushes=args.pushes,
+        pairs=args.pairs,
+        pushers=pushers,
+        seed=args.seed,
+        progress=not args.json,
+    )
+    print(json.dumps([asdict(r) for r in results]) if args.json else pushers_table(results))
+    return 0
+
+
 def cmd_bench_physics(args: argparse.Namespace) -> int:
     from dataclasses import asdict
 
@@ -142,6 +160,16 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--threads", type=int, default=None, help="threads (default: all cores)")
     sim.add_argument("--json", action="store_true", help="print one JSON object")
     sim.set_defaults(func=cmd_bench_sim)
+    push = bench_sub.add_parser(
+        "pushers", help="pushes per second of each pusher, and what x10 masses change"
+    )
+    push.add_argument("--links", type=int, default=2)
+    push.add_argument("--pushes", type=int, default=60, help="pushes through the env")
+    push.add_argument("--pairs", type=int, default=40, help="chains compared with x10 masses")
+    push.add_argument("--pushers", default="stiff,kuka,ur10", help="comma-separated")
+    push.add_argument("--seed", type=int, default=0)
+    push.add_argument("--json", action="store_true", help="print JSON")
+    push.set_defaults(func=cmd_bench_pushers)
     phys = bench_sub.add_parser(
         "physics", help="rest-pose convergence in the time step, and chaotic sensitivity"
     )

@@ -60,3 +60,18 @@ def task_inertia(jac: np.ndarray, mass_matrix: np.ndarray, damping: float = 1e-6
 def osc_torque(jac: np.ndarray, mass_matrix: np.ndarray, xdd: np.ndarray) -> np.ndarray:
     """tau = J^T M_x xdd (gravity compensation is added by the simulator)."""
     return jac.T @ (task_inertia(jac, mass_matrix) @ xdd)
+
+
+def scale_to_limits(tau: np.ndarray, headroom: np.ndarray) -> np.ndarray:
+    """tau scaled down uniformly until every |tau_i| <= headroom_i.
+
+    Clipping each joint separately would bend the end-effector's acceleration off its
+    commanded direction whenever a limit is reached (a fast push then drifts off the
+    line and can miss the link); a common scale keeps the direction and respects every
+    limit. `headroom` is each joint's torque limit minus what gravity compensation uses.
+    """
+    headroom = np.maximum(headroom, 0.0)
+    over = np.abs(tau) > headroom
+    if not over.any():
+        return tau
+    return tau * float(np.min(headroom[over] / np.abs(tau[over])))
