@@ -78,6 +78,9 @@ class ChainEnv(gym.Env):
     `gymnasium.make("masspush/Chain-v0", n_links=2, mass_range=(0.1, 1.0), pushes=None,
     obs_noise=0.01, action_noise=0.01, pusher="stiff", physics=None)`; `physics` is a
     full `PhysicsConfig` whose n_links and mass_range the two arguments override.
+    `pusher`: "stiff" (idealised, velocity-controlled), "kuka" or "ur10" (robot arms under
+    the paper's operational-space control; they add the failures "arm_contact" and
+    "unreachable", see docs/arms.md).
 
     ## Version history
     v0: first version.
