@@ -36,3 +36,9 @@ def test_bench_sim_reports_all_paths():
     for key in ("env_pushes_per_s", "batch_pushes_per_s", "ceiling_pushes_per_s"):
         assert report[key] > 0
     assert 0 <= report["failure_rate"] < 0.2
+
+
+def test_demo_is_reproducible_from_its_seed():
+    first, second = run_cli("demo", "--seed", "5"), run_cli("demo", "--seed", "5")
+    assert first.returncode == 0 and first.stdout == second.stdout
+    assert run_cli("demo", "--seed", "6").stdout != first.stdout

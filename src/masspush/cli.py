@@ -20,6 +20,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
     env = ChainEnv(n_links=args.links, mass_range=tuple(args.mass_range), pushes=args.pushes)
     obs, info = env.reset(seed=args.seed)
+    env.action_space.seed(args.seed)  # the whole demo is reproducible from its seed
     n = args.links
     print(f"A {n}-link chain on a table (seed {args.seed}); the robot may only push it and look.")
     print(f"  true masses        {_format(info['masses'])} kg")
