@@ -117,6 +117,13 @@ def test_an_arm_link_touching_the_chain_is_detected():
     assert pusher._contacts(sim.data, h) == (False, True)
 
 
+@pytest.mark.parametrize("arm", ARM_NAMES)
+def test_very_slow_pushes_still_arrive(arm):
+    sim = sim_with(arm)
+    outcome = sim.push(np.array([0.002, -0.5]))  # 1 cm/s
+    assert outcome.failure is None and sim.pusher.trace.contact_step is not None
+
+
 def test_zero_speed_push_touches_nothing():
     sim = sim_with("kuka")
     before = sim.config()

@@ -36,5 +36,7 @@ def test_batch_checks_its_inputs():
         ChainBatch([], physics)
     with pytest.raises(ValueError, match="n_links"):
         ChainBatch(chains, PhysicsConfig(n_links=3))
+    with pytest.raises(ValueError, match="stiff pusher only"):
+        ChainBatch(chains, physics, pusher="kuka")
     with pytest.raises(ValueError, match="shape"):
         ChainBatch(chains, physics).push(np.zeros((2, 2)))

@@ -203,7 +203,8 @@ class ArmPusher:
         dt = model.opt.timestep
         hold = physics.push_steps[1]
         # A torque-limited arm may be slower than commanded: allow it twice the time.
-        deadline = math.ceil((2 * np.linalg.norm(touch - standoff) / push.speed + 0.05) / dt)
+        to_face = run_up + physics.pusher_clearance
+        deadline = math.ceil((2 * to_face / push.speed + 0.05) / dt)
         velocity = np.concatenate([direction * push.speed, np.zeros(3)])
         failure = None
         step = 0

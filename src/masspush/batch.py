@@ -26,7 +26,19 @@ from masspush.simulate import OK, PushOutcome, classify, failure_name, settle_ca
 class ChainBatch:
     """A batch of chains, each at rest between pushes, pushed by the stiff pusher."""
 
-    def __init__(self, chains: Sequence[ChainParams], physics: PhysicsConfig, nthread: int = 0):
+    def __init__(
+        self,
+        chains: Sequence[ChainParams],
+        physics: PhysicsConfig,
+        nthread: int = 0,
+        pusher: str = "stiff",
+    ):
+        if pusher != "stiff":
+            # An arm needs Python control at every step, which MuJoCo's C batch cannot run.
+            raise ValueError(
+                f"the batch path runs the stiff pusher only, not {pusher!r}; "
+                "simulate arm pushes one chain at a time with ChainSim (or the environment)"
+            )
         if not chains:
             raise ValueError("ChainBatch needs at least one chain")
         for chain in chains:
