@@ -66,6 +66,10 @@ class ChainBatch:
         initial, _ = self.settle(np.arange(len(chains)))
         self.initial_failures = initial
 
+    def initial_failures_mask(self) -> np.ndarray:
+        """(nsim,) bool: chains that failed already while settling before the first push."""
+        return np.array([f is not None for f in self.initial_failures])
+
     @property
     def nsim(self) -> int:
         return len(self.chains)

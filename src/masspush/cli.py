@@ -118,6 +118,29 @@ def cmd_render(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_collect(args: argparse.Namespace) -> int:
+    from masspush.dataset import collect
+    from masspush.settings import PAPER_PUSHER, get_setting
+
+    args.pusher = args.pusher or PAPER_PUSHER
+    setting = get_setting(args.setting, args.settings_file)
+    manifest = collect(
+        setting,
+        args.out,
+        episodes=args.episodes,
+        pusher=args.pusher,
+        policy=args.policy,
+        base_seed=args.seed,
+        shard_size=args.shard_size,
+        workers=args.workers,
+    )
+    print(
+        f"{args.out}: {manifest.episodes} episodes of {setting.name} ({manifest.pusher} pusher, "
+        f"{manifest.policy} policy) in {manifest.shards} shards"
+    )
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="masspush",
@@ -141,6 +164,20 @@ def build_parser() -> argparse.ArgumentParser:
     chain_args(demo)
     demo.add_argument("--pushes", type=int, default=None, help="pushes (default: one per link)")
     demo.set_defaults(func=cmd_demo)
+
+    col = sub.add_parser("collect", help="collect rollout episodes into a dataset (resumable)")
+    col.add_argument("--setting", required=True, help="named setting, e.g. 2link-0.1-1")
+    col.add_argument("--settings-file", default=None, help="TOML file with custom settings")
+    col.add_argument("--policy", default="random", help="random (more with trained policies)")
+    col.add_argument("--episodes", type=int, required=True)
+    col.add_argument("--out", required=True, help="dataset directory (resumes if it exists)")
+    col.add_argument(
+        "--pusher", default=None, help="stiff, kuka or ur10 (default: kuka, the paper's arm)"
+    )
+    col.add_argument("--seed", type=int, default=0, help="base seed of the episodes")
+    col.add_argument("--shard-size", type=int, default=1000)
+    col.add_argument("--workers", type=int, default=None, help="processes for arm pushers")
+    col.set_defaults(func=cmd_collect)
 
     render = sub.add_parser("render", help="render an episode to a video (MP4 or GIF)")
     render.add_argument("--setting", default="2link-0.1-1", help="named setting")

@@ -1,0 +1,50 @@
+"""Error metrics for mass-distribution estimates; arrays are (episodes, links)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+PAPER_EPS = 1e-4
+"""The authors' guard against division by zero in their percentage error [code]."""
+
+
+def mae(pred: np.ndarray, true: np.ndarray) -> float:
+    """Mean absolute error over all episodes and links."""
+    return float(np.mean(np.abs(np.asarray(pred) - np.asarray(true))))
+
+
+def percentage_error(pred: np.ndarray, true: np.ndarray) -> float:
+    """The paper's "percentage error" exactly as its authors coded it (x100).
+
+    The batch's MAE (one scalar) divided by (1e-4 + m_ij) for every link j of every episode
+    i, averaged: mean_ij MAE / (1e-4 + m_ij). Not the mean of per-link relative errors:
+    large errors on light links are not weighted up (shared/notes/paper-details.md).
+    """
+    true = np.asarray(true, dtype=float)
+    return float(np.mean(mae(pred, true) / (PAPER_EPS + true)) * 100.0)
+
+
+def relative_error(pred: np.ndarray, true: np.ndarray) -> float:
+    """Mean per-link relative error x100: mean_ij |m_hat_ij - m_ij| / m_ij."""
+    true = np.asarray(true, dtype=float)
+    return float(np.mean(np.abs(np.asarray(pred) - true) / true) * 100.0)
+
+
+def constant_prediction(true: np.ndarray) -> np.ndarray:
+    """The uniform distribution 1/n for every episode: the mean distribution, since links'
+    masses are drawn i.i.d. (what an estimator that learnt nothing would say)."""
+    true = np.asarray(true)
+    return np.full_like(true, 1.0 / true.shape[1], dtype=float)
+
+
+def all_metrics(pred: np.ndarray, true: np.ndarray) -> dict[str, float]:
+    """Every metric, and the same for the constant prediction (the floor to beat)."""
+    const = constant_prediction(true)
+    return {
+        "percentage_error": percentage_error(pred, true),
+        "relative_error": relative_error(pred, true),
+        "mae": mae(pred, true),
+        "constant_floor": percentage_error(const, true),
+        "constant_floor_relative_error": relative_error(const, true),
+        "constant_floor_mae": mae(const, true),
+    }

@@ -1,0 +1,264 @@
+"""Episodes in bulk: a policy pushes many chains, and every step is recorded.
+
+Two engines give the same episodes for the same seeds:
+- the batch engine (stiff pusher): one `ChainBatch` on all threads;
+- the environment engine (any pusher, arms included): `ChainEnv` episodes, spread over
+  worker processes, one per core.
+The batch engine draws its random numbers exactly as `ChainEnv` does (one generator per
+episode, seeded like `env.reset(seed=...)`), so both engines give bit-identical episodes
+(`tests/test_rollout.py`).
+
+Seeds: episode i of a run with base seed b and purpose p (TRAIN or EVAL) is seeded from
+SeedSequence([p, b, i]); training and evaluation episodes therefore never share a seed.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, fields
+from typing import Protocol
+
+import numpy as np
+
+from masspush.chain import sample_chain, wrap_angle
+from masspush.config import EnvConfig
+from masspush.simulate import FAILURES
+
+TRAIN, EVAL = 0, 1
+"""Seed purposes: episodes for training data and for evaluation come from disjoint streams."""
+NOT_RUN = -1
+"""Failure code of a push that was never made (the episode ended earlier)."""
+
+
+def episode_seed(purpose: int, base_seed: int, index: int) -> int:
+    """The integer seed of one episode (what `env.reset(seed=...)` receives)."""
+    ss = np.random.SeedSequence([purpose, base_seed, index])
+    return int(ss.generate_state(2, dtype=np.uint64)[0] >> np.uint64(1))
+
+
+class Policy(Protocol):
+    """Chooses pushes for a batch of episodes from what has been observed so far."""
+
+    name: str
+
+    def reset(self, seeds: np.ndarray) -> None:
+        """Start len(seeds) episodes; `seeds` are the episodes' seeds (for any randomness)."""
+
+    def act(self, observations: np.ndarray, actions: np.ndarray, step: int) -> np.ndarray:
+        """(E, 2) actions in [-1, 1] for step `step`, given the observations q_0..q_step
+        (E, K + 1, D) and the actions a_0..a_{step-1} (E, K, 2) so far."""
+
+
+class RandomPolicy:
+    """Uniform random pushes, independent of what is observed (the paper's RP policy)."""
+
+    name = "random"
+
+    def reset(self, seeds: np.ndarray) -> None:
+        self._rngs = [np.random.default_rng([int(s), 1]) for s in seeds]
+
+    def act(self, observations: np.ndarray, actions: np.ndarray, step: int) -> np.ndarray:
+        return np.array([rng.uniform(-1.0, 1.0, size=2) for rng in self._rngs], dtype=np.float32)
+
+
+POLICIES: dict[str, Callable[[], Policy]] = {"random": RandomPolicy}
+
+
+@dataclass
+class Episodes:
+    """A batch of recorded episodes (E episodes of up to K pushes, n links, D = 3 + n - 1)."""
+
+    index: np.ndarray
+    """(E,) int64: the episodes' indices in their run (their seeds follow from it)."""
+    seed: np.ndarray
+    """(E,) uint64: the seed each episode's environment was reset with."""
+    observations: np.ndarray
+    """(E, K + 1, D) float32: the noisy rest configurations q_0..q_K the robot saw."""
+    configs: np.ndarray
+    """(E, K + 1, D) float32: the true rest configurations."""
+    actions: np.ndarray
+    """(E, K, 2) float32: the policy's actions."""
+    executed: np.ndarray
+    """(E, K, 2) float32: the actions executed (with action noise, clipped)."""
+    failure: np.ndarray
+    """(E, K) int8: 0 for a good push, 1 + FAILURES.index(reason) for a failed one,
+    NOT_RUN for pushes never made. Steps after a failure hold NaN observations."""
+    masses: np.ndarray
+    """(E, n) float32: link masses, kg."""
+    friction: np.ndarray
+    """(E,) float32: table friction coefficient."""
+    lengths: np.ndarray
+    """(E, n) float32: link lengths, m (observed exactly)."""
+
+    @property
+    def mass_distribution(self) -> np.ndarray:
+        return self.masses / self.masses.sum(axis=1, keepdims=True)
+
+    @property
+    def ok(self) -> np.ndarray:
+        """(E,) bool: episodes in which every push succeeded."""
+        return (self.failure == 0).all(axis=1)
+
+    def __len__(self) -> int:
+        return len(self.index)
+
+    def select(self, mask: np.ndarray) -> Episodes:
+        return Episodes(**{f.name: getattr(self, f.name)[mask] for f in fields(self)})
+
+    @staticmethod
+    def concatenate(parts: Sequence[Episodes]) -> Episodes:
+        return Episodes(
+            **{
+                f.name: np.concatenate([getattr(p, f.name) for p in parts])
+                for f in fields(Episodes)
+            }
+        )
+
+
+def failure_code(reason: str | None) -> int:
+    return 0 if reason is None else 1 + FAILURES.index(reason)
+
+
+def _empty(e: int, k: int, n: int) -> Episodes:
+    d = 3 + n - 1
+    return Episodes(
+        index=np.zeros(e, np.int64),
+        seed=np.zeros(e, np.uint64),
+        observations=np.full((e, k + 1, d), np.nan, np.float32),
+        configs=np.full((e, k + 1, d), np.nan, np.float32),
+        actions=np.full((e, k, 2), np.nan, np.float32),
+        executed=np.full((e, k, 2), np.nan, np.float32),
+        failure=np.full((e, k), NOT_RUN, np.int8),
+        masses=np.zeros((e, n), np.float32),
+        friction=np.zeros(e, np.float32),
+        lengths=np.zeros((e, n), np.float32),
+    )
+
+
+def _noisy(config: np.ndarray, rng: np.random.Generator, sigma: float) -> np.ndarray:
+    noisy = config + rng.normal(0.0, sigma, size=config.shape)
+    noisy[2] = wrap_angle(noisy[2])
+    return noisy
+
+
+def run_batch(
+    env_config: EnvConfig,
+    policy: Policy,
+    indices: np.ndarray,
+    purpose: int,
+    base_seed: int,
+    nthread: int = 0,
+) -> Episodes:
+    """Episodes on the batch path (stiff pusher only), drawing noise exactly as ChainEnv."""
+    from masspush.batch import ChainBatch
+
+    physics = env_config.physics
+    k, n = env_config.pushes, physics.n_links
+    out = _empty(len(indices), k, n)
+    seeds = np.array([episode_seed(purpose, base_seed, int(i)) for i in indices], np.uint64)
+    rngs = [np.random.default_rng(int(s)) for s in seeds]
+    chains = [sample_chain(physics, rng) for rng in rngs]
+    batch = ChainBatch(chains, physics, nthread=nthread, pusher=env_config.pusher)
+    out.index[:] = indices
+    out.seed[:] = seeds
+    for e, chain in enumerate(chains):
+        out.masses[e], out.friction[e], out.lengths[e] = chain.masses, chain.friction, chain.lengths
+    alive = ~batch.initial_failures_mask()
+    configs = batch.configs()
+    for e in np.flatnonzero(alive):
+        out.configs[e, 0] = configs[e]
+        out.observations[e, 0] = _noisy(configs[e], rngs[e], env_config.obs_noise)
+    policy.reset(seeds)
+    for t in range(k):
+        actions = np.asarray(policy.act(out.observations, out.actions, t), np.float32)
+        executed = np.zeros((len(indices), 2))
+        for e in np.flatnonzero(alive):
+            noisy = actions[e] + rngs[e].normal(0.0, env_config.action_noise, size=2)
+            executed[e] = np.clip(noisy, -1.0, 1.0)
+        batch.failed[:] = ~alive  # chains whose episode is over are not pushed
+        outcomes = batch.push(executed)
+        configs = batch.configs()
+        for e in np.flatnonzero(alive):
+            out.actions[e, t], out.executed[e, t] = actions[e], executed[e]
+            out.failure[e, t] = failure_code(outcomes[e].failure)
+            if outcomes[e].failure is not None:
+                alive[e] = False
+                continue
+            out.configs[e, t + 1] = configs[e]
+            out.observations[e, t + 1] = _noisy(configs[e], rngs[e], env_config.obs_noise)
+    return out
+
+
+def run_env(
+    env_config: EnvConfig, policy: Policy, indices: np.ndarray, purpose: int, base_seed: int
+) -> Episodes:
+    """Episodes through ChainEnv, one after the other (any pusher)."""
+    from masspush.env import ChainEnv
+
+    physics = env_config.physics
+    k, n = env_config.pushes, physics.n_links
+    env = ChainEnv(
+        n_links=n,
+        mass_range=physics.mass_range,
+        pushes=k,
+        obs_noise=env_config.obs_noise,
+        action_noise=env_config.action_noise,
+        pusher=env_config.pusher,
+        physics=physics,
+    )
+    out = _empty(len(indices), k, n)
+    d = physics.obs_dim
+    for e, i in enumerate(indices):
+        seed = episode_seed(purpose, base_seed, int(i))
+        obs, info = env.reset(seed=seed)
+        one = _empty(1, k, n)
+        out.index[e], out.seed[e] = i, seed
+        out.masses[e], out.friction[e], out.lengths[e] = (
+            info["masses"],
+            info["friction"],
+            info["lengths"],
+        )
+        if info["failure"] is not None:
+            continue
+        one.observations[0, 0], one.configs[0, 0] = obs[:d], info["config"]
+        policy.reset(np.array([seed], np.uint64))
+        for t in range(k):
+            action = np.asarray(policy.act(one.observations, one.actions, t), np.float32)[0]
+            obs, _, terminated, _, info = env.step(action)
+            one.actions[0, t], one.executed[0, t] = action, info["push"]["action"]
+            one.failure[0, t] = failure_code(info["failure"])
+            if info["failure"] is not None:
+                break
+            one.observations[0, t + 1], one.configs[0, t + 1] = obs[:d], info["config"]
+            if terminated:
+                break
+        for name in ("observations", "configs", "actions", "executed", "failure"):
+            getattr(out, name)[e] = getattr(one, name)[0]
+    return out
+
+
+def _run_env_job(args) -> Episodes:
+    return run_env(*args)
+
+
+def run_episodes(
+    env_config: EnvConfig,
+    policy: Policy,
+    indices: np.ndarray,
+    purpose: int,
+    base_seed: int,
+    workers: int | None = None,
+) -> Episodes:
+    """Episodes with every core: the batch engine for the stiff pusher, else processes."""
+    indices = np.asarray(indices, np.int64)
+    if env_config.pusher == "stiff":
+        return run_batch(env_config, policy, indices, purpose, base_seed)
+    workers = workers or os.cpu_count() or 1
+    if workers == 1 or len(indices) < 2:
+        return run_env(env_config, policy, indices, purpose, base_seed)
+    parts = np.array_split(indices, workers)
+    jobs = [(env_config, policy, p, purpose, base_seed) for p in parts if len(p)]
+    with ProcessPoolExecutor(max_workers=len(jobs)) as pool:
+        return Episodes.concatenate(list(pool.map(_run_env_job, jobs)))
