@@ -21,3 +21,35 @@ def test_the_six_paper_settings():
 def test_unknown_setting_lists_the_known_ones():
     with pytest.raises(ValueError, match=r"2link-0\.1-1"):
         get_setting("2link")
+
+
+def test_custom_settings_from_a_toml_file(tmp_path):
+    from masspush.settings import load_settings
+
+    path = tmp_path / "settings.toml"
+    path.write_text("[long4]\nlinks = 4\nmass_range = [1.0, 5.0]\nlength_range = [0.15, 0.2]\n")
+    s = get_setting("long4", path)
+    physics = s.physics()
+    assert (physics.n_links, physics.mass_range, physics.length_range) == (
+        4,
+        (1.0, 5.0),
+        (0.15, 0.2),
+    )
+    assert "2link-0.1-1" in {**load_settings(path), "2link-0.1-1": None}
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("[bad]\nlinks = 1\nmass_range = [1.0, 2.0]\n", "n_links"),
+        ("[bad]\nlinks = 2\nmass_range = [2.0, 1.0]\n", "empty"),
+        ("[bad]\nlinks = 2\n", "lacks 'mass_range'"),
+        ("[bad]\nlinks = 2\nmass_range = [1.0, 2.0]\nfriction = 3\n", "unknown parameter"),
+        ("[bad\n", "not valid TOML"),
+    ],
+)
+def test_invalid_settings_files_are_refused_with_the_reason(tmp_path, text, message):
+    path = tmp_path / "s.toml"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=message):
+        get_setting("bad", path)

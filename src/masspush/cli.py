@@ -141,6 +141,69 @@ def cmd_collect(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_train_predictor(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
+    from masspush.dataset import code_version, load_dataset
+    from masspush.predictor import FAST, TrainConfig, train_predictor
+
+    manifest, episodes = load_dataset(args.data, limit=args.episodes)
+    if manifest.setting["name"] != args.setting:
+        raise ValueError(
+            f"{args.data} holds setting {manifest.setting['name']!r}, not {args.setting!r}"
+        )
+    config = FAST if args.fast else TrainConfig()
+    overrides = {
+        k: v
+        for k, v in (
+            ("steps", args.steps),
+            ("batch_size", args.batch_size),
+            ("lr", args.lr),
+            ("optimizer", args.optimizer),
+            ("features", args.features),
+            ("seed", args.seed),
+        )
+        if v is not None
+    }
+    config = replace(config, **overrides)
+    meta = {
+        "setting": manifest.setting,
+        "pusher": manifest.pusher,
+        "policy": manifest.policy,
+        "dataset": str(args.data),
+        "dataset_episodes": len(episodes),
+        "code_version": code_version(),
+    }
+    out = args.out or f"runs/predictor-{args.setting}-{len(episodes)}"
+    _, summary = train_predictor(episodes, out, config, meta)
+    print(
+        f"wrote {out}/predictor.pt: best validation percentage error "
+        f"{summary['best_validation_error']:.2f} at step {summary['best_step']} "
+        f"({summary['samples_per_s']:.0f} samples/s)"
+    )
+    return 0
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    from masspush.evaluate import evaluate
+
+    result = evaluate(
+        args.setting,
+        args.model,
+        episodes=args.episodes,
+        seed=args.seed,
+        pusher=args.pusher,
+        settings_file=args.settings_file,
+        workers=args.workers,
+    )
+    if args.json:
+        print(json.dumps(result))
+    else:
+        for key, value in result.items():
+            print(f"{key:34s} {value}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="masspush",
@@ -178,6 +241,31 @@ def build_parser() -> argparse.ArgumentParser:
     col.add_argument("--shard-size", type=int, default=1000)
     col.add_argument("--workers", type=int, default=None, help="processes for arm pushers")
     col.set_defaults(func=cmd_collect)
+
+    tp = sub.add_parser("train-predictor", help="train the LSTM predictor on a dataset")
+    tp.add_argument("--setting", required=True)
+    tp.add_argument("--data", required=True, help="dataset directory from masspush collect")
+    tp.add_argument("--episodes", type=int, default=None, help="use the first N episodes")
+    tp.add_argument("--out", default=None, help="run directory (resumes if it exists)")
+    tp.add_argument("--fast", action="store_true", help="Adam, batch 256, 20k steps")
+    tp.add_argument("--features", default=None, help="paper or relative")
+    tp.add_argument("--optimizer", default=None, help="sgd (paper) or adam")
+    tp.add_argument("--steps", type=int, default=None)
+    tp.add_argument("--batch-size", type=int, default=None)
+    tp.add_argument("--lr", type=float, default=None)
+    tp.add_argument("--seed", type=int, default=None)
+    tp.set_defaults(func=cmd_train_predictor)
+
+    ev = sub.add_parser("evaluate", help="evaluate a model on fresh simulated episodes")
+    ev.add_argument("--setting", required=True)
+    ev.add_argument("--settings-file", default=None)
+    ev.add_argument("--model", required=True, help="a model file, or rp, rp+, tp, tp+")
+    ev.add_argument("--episodes", type=int, default=800)
+    ev.add_argument("--seed", type=int, default=0)
+    ev.add_argument("--pusher", default=None, help="default: the one the model was trained with")
+    ev.add_argument("--workers", type=int, default=None)
+    ev.add_argument("--json", action="store_true", help="print one JSON object")
+    ev.set_defaults(func=cmd_evaluate)
 
     render = sub.add_parser("render", help="render an episode to a video (MP4 or GIF)")
     render.add_argument("--setting", default="2link-0.1-1", help="named setting")

@@ -2,8 +2,8 @@
 
 Architecture (shared/notes/paper-details.md):
     step input x_t = (a_t, q_{t+1}, lengths) -> FC 128 + ReLU -> LSTM 64 -> FC n -> softmax,
-    initial LSTM state (h_0, c_0) = (ReLU(FC 64 (q_0)), ReLU(FC 64 (q_0))) with q_0 = (q_0, lengths),
-    loss: squared error averaged over all K step outputs.
+    initial LSTM state (h_0, c_0) = (ReLU(FC 64 (q_0')), ReLU(FC 64 (q_0'))),
+    q_0' = (q_0, lengths); loss: squared error averaged over all K step outputs.
 Inputs are normalised with the training set's mean and standard deviation (stored in the
 model). Training: the paper's plain SGD (batch 16, lr 0.1 halved three times over four
 equal phases) by default, or Adam with larger batches (the faster option, measured in
@@ -249,6 +249,7 @@ def train_predictor(
     optimiser = optim_cls(model.parameters(), lr=config.lr)
     rng = np.random.default_rng(config.seed + 1)
     step, history = 0, []
+    best: dict[str, Any] = {"error": math.inf, "step": 0, "state": None}
     ckpt = run / "checkpoint.pt"
     if ckpt.exists():
         state = torch.load(ckpt, map_location="cpu", weights_only=False)
@@ -259,6 +260,7 @@ def train_predictor(
         rng.bit_generator.state = state["rng"]
         torch.set_rng_state(state["torch_rng"])
         step, history = state["step"], state["history"]
+        best = state["best"]
     (run / "config.json").write_text(
         json.dumps({"train": asdict(config), "meta": meta or {}, "episodes": len(good)}, indent=2)
     )
@@ -293,6 +295,15 @@ def train_predictor(
         if step % config.eval_every == 0 or step == config.steps:
             val = _validation(model, tensors, val_idx)
             history.append({"step": step, **val})
+            # Keep the weights that did best on held-out episodes: longer training overfits.
+            error = val.get("percentage_error", math.inf)
+            if error < best["error"] or best["state"] is None:
+                state_dict = model.state_dict()
+                best = {
+                    "error": error,
+                    "step": step,
+                    "state": {k: v.clone() for k, v in state_dict.items()},
+                }
             for key, value in val.items():
                 writer.add_scalar(f"validation/{key}", value, step)
             bar.set_postfix(val_pct=f"{val.get('percentage_error', float('nan')):.2f}")
@@ -307,6 +318,7 @@ def train_predictor(
                     "step": step,
                     "history": history,
                     "config": asdict(config),
+                    "best": best,
                 },
                 str(ckpt) + ".tmp",
             )
@@ -314,8 +326,12 @@ def train_predictor(
     bar.close()
     writer.close()
     elapsed = time.perf_counter() - started
+    if best["state"] is not None:
+        model.load_state_dict(best["state"])
     summary = {
         "steps": step,
+        "best_step": best["step"],
+        "best_validation_error": best["error"],
         "episodes": len(good),
         "train_episodes": len(train_idx),
         "validation_episodes": len(val_idx),

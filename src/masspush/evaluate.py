@@ -1,0 +1,80 @@
+"""The one evaluation path: fresh simulated episodes, a model's estimates, every metric.
+
+Episodes are drawn from the EVAL seed stream (`masspush.rollout`), which never meets the
+TRAIN stream that datasets are collected from, so evaluation never reuses a training seed.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from masspush.config import EnvConfig
+from masspush.metrics import all_metrics, percentage_error
+from masspush.predictor import load_model
+from masspush.rollout import EVAL, POLICIES, run_episodes
+from masspush.settings import get_setting
+
+SHIPPED_DIR = Path(__file__).parent / "models"
+"""Trained models shipped with the package: models/<setting>/<name>.pt."""
+SHIPPED_NAMES = ("rp", "rp+", "tp", "tp+")
+
+
+def resolve_model(model: str | os.PathLike, setting: str) -> Path:
+    """A shipped model's file for `setting` (by name: rp, rp+, tp, tp+), or a path."""
+    if str(model) in SHIPPED_NAMES:
+        path = SHIPPED_DIR / setting / f"{model}.pt"
+        if not path.exists():
+            have = sorted(p.stem for p in (SHIPPED_DIR / setting).glob("*.pt"))
+            raise ValueError(
+                f"no shipped {model!r} model for setting {setting!r} yet"
+                + (f" (shipped for it: {have})" if have else "")
+            )
+        return path
+    path = Path(model)
+    if not path.exists():
+        raise ValueError(f"no model file at {path} (shipped names: {list(SHIPPED_NAMES)})")
+    return path
+
+
+def evaluate(
+    setting: str,
+    model: str | os.PathLike,
+    episodes: int = 800,
+    seed: int = 0,
+    pusher: str | None = None,
+    settings_file: str | os.PathLike | None = None,
+    workers: int | None = None,
+) -> dict[str, Any]:
+    """Run `episodes` fresh episodes with the model's policy and report every metric."""
+    if episodes < 1:
+        raise ValueError(f"episodes must be >= 1, got {episodes}")
+    spec = get_setting(setting, settings_file)
+    path = resolve_model(model, spec.name)
+    predictor, meta = load_model(path, setting=spec.name, pusher=pusher)
+    pusher = pusher or meta.get("pusher", "stiff")
+    policy = POLICIES[meta.get("policy", "random")]()
+    env_config = EnvConfig(physics=spec.physics(), pusher=pusher)
+    run = run_episodes(env_config, policy, np.arange(episodes), EVAL, seed, workers)
+    good = run.select(run.ok)
+    if len(good) == 0:
+        raise ValueError("every evaluation episode failed; nothing to score")
+    predictions = predictor.predict(good)
+    truth = good.mass_distribution
+    return {
+        "setting": spec.name,
+        "model": str(model),
+        "model_file": str(path),
+        "pusher": pusher,
+        "policy": policy.name,
+        "seed": seed,
+        "episodes": len(good),
+        "failures": int(len(run) - len(good)),
+        **all_metrics(predictions[:, -1], truth),
+        "percentage_error_after_each_push": [
+            percentage_error(predictions[:, k], truth) for k in range(predictions.shape[1])
+        ],
+    }

@@ -1,0 +1,71 @@
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from masspush.config import EnvConfig
+from masspush.evaluate import evaluate, resolve_model
+from masspush.predictor import MassPredictor, save_model, step_inputs
+from masspush.rollout import TRAIN, RandomPolicy, run_batch
+from masspush.settings import get_setting
+
+KEYS = {"percentage_error", "relative_error", "mae", "constant_floor", "episodes", "failures"}
+
+
+@pytest.fixture(scope="module")
+def model_file(tmp_path_factory):
+    setting = get_setting("2link-0.1-1")
+    eps = run_batch(EnvConfig(physics=setting.physics()), RandomPolicy(), np.arange(50), TRAIN, 0)
+    q0, steps = step_inputs(eps.select(eps.ok), "relative")
+    model = MassPredictor(2, q0.shape[1], steps.shape[2], "relative")
+    model.set_normaliser(q0, steps)
+    path = tmp_path_factory.mktemp("m") / "model.pt"
+    save_model(path, model, {"setting": setting.as_dict(), "pusher": "stiff", "policy": "random"})
+    return path
+
+
+def test_evaluate_json_has_the_documented_keys(model_file):
+    out = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "masspush.cli",
+            "evaluate",
+            "--setting",
+            "2link-0.1-1",
+            "--model",
+            str(model_file),
+            "--episodes",
+            "30",
+            "--seed",
+            "4",
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert out.returncode == 0, out.stderr
+    result = json.loads(out.stdout)
+    assert KEYS <= set(result)
+    assert result["episodes"] + result["failures"] == 30
+    assert result["pusher"] == "stiff" and result["policy"] == "random"
+    assert len(result["percentage_error_after_each_push"]) == 2
+
+
+def test_evaluation_is_deterministic_and_seeded(model_file):
+    a = evaluate("2link-0.1-1", model_file, episodes=20, seed=1)
+    b = evaluate("2link-0.1-1", model_file, episodes=20, seed=1)
+    c = evaluate("2link-0.1-1", model_file, episodes=20, seed=2)
+    assert a == b and a["mae"] != c["mae"]
+
+
+def test_unknown_models_are_clear_errors(model_file, tmp_path):
+    with pytest.raises(ValueError, match="no model file"):
+        resolve_model(tmp_path / "missing.pt", "2link-0.1-1")
+    with pytest.raises(ValueError, match="no shipped 'tp' model"):
+        resolve_model("tp", "2link-0.1-1")
+    with pytest.raises(ValueError, match="trained for setting"):
+        evaluate("3link-0.1-1", model_file, episodes=2)

@@ -1,0 +1,127 @@
+import re
+
+import numpy as np
+import pytest
+import torch
+
+from masspush.config import EnvConfig
+from masspush.metrics import all_metrics
+from masspush.predictor import (
+    MassPredictor,
+    ModelMismatchError,
+    TrainConfig,
+    load_model,
+    save_model,
+    step_inputs,
+    train_predictor,
+)
+from masspush.rollout import EVAL, TRAIN, RandomPolicy, run_batch
+from masspush.settings import get_setting
+
+SETTING = get_setting("2link-0.1-1")
+
+
+@pytest.fixture(scope="module")
+def episodes():
+    config = EnvConfig(physics=SETTING.physics(), pusher="stiff")
+    return run_batch(config, RandomPolicy(), np.arange(3000), TRAIN, 0)
+
+
+def test_architecture_is_the_papers():
+    model = MassPredictor(n_links=3, q0_dim=8, step_dim=12)
+    assert (model.embed.out_features, model.lstm.hidden_size) == (128, 64)
+    assert (model.init_h.out_features, model.init_c.out_features, model.head.out_features) == (
+        64,
+        64,
+        3,
+    )
+    out = model(torch.zeros(5, 8), torch.zeros(5, 3, 12))
+    assert out.shape == (5, 3, 3)
+    torch.testing.assert_close(out.sum(-1), torch.ones(5, 3))
+
+
+def test_predictor_overfits_a_tiny_dataset(episodes, tmp_path):
+    tiny = episodes.select(np.arange(len(episodes)) < 24)
+    config = TrainConfig(
+        optimizer="adam",
+        steps=1500,
+        batch_size=16,
+        lr=1e-2,
+        validation_fraction=0.0,
+        eval_every=1500,
+        features="relative",
+    )
+    model, _ = train_predictor(tiny, tmp_path / "run", config, progress=False)
+    good = tiny.select(tiny.ok)
+    error = np.abs(model.predict(good)[:, -1] - good.mass_distribution).mean()
+    assert error < 0.02  # memorised (the constant prediction is off by ~0.15)
+
+
+@pytest.mark.slow
+def test_short_training_beats_the_constant_floor_on_held_out_episodes(episodes, tmp_path):
+    config = TrainConfig(
+        optimizer="adam", steps=2500, batch_size=128, lr=3e-3, eval_every=500, features="relative"
+    )
+    model, _ = train_predictor(episodes, tmp_path / "run", config, progress=False)
+    fresh = run_batch(EnvConfig(physics=SETTING.physics()), RandomPolicy(), np.arange(400), EVAL, 0)
+    fresh = fresh.select(fresh.ok)
+    result = all_metrics(model.predict(fresh)[:, -1], fresh.mass_distribution)
+    assert result["percentage_error"] < 0.85 * result["constant_floor"], result
+
+
+def test_training_resumes_exactly_where_it_stopped(episodes, tmp_path):
+    small = episodes.select(np.arange(len(episodes)) < 200)
+    full = TrainConfig(
+        optimizer="adam", steps=60, batch_size=8, lr=1e-3, eval_every=20, checkpoint_every=30
+    )
+    straight, _ = train_predictor(small, tmp_path / "a", full, progress=False)
+    # A run killed right after its checkpoint at step 30, then started again, ends the same.
+    interrupted = tmp_path / "c"
+    _run_until(small, interrupted, full, 30)
+    resumed, summary = train_predictor(small, interrupted, full, progress=False)
+    assert summary["steps"] == 60
+    for a, b in zip(straight.state_dict().values(), resumed.state_dict().values(), strict=True):
+        torch.testing.assert_close(a, b)
+
+
+def _run_until(episodes, run_dir, config, stop_step):
+    """Train with `config` but stop (as if killed) right after the checkpoint at stop_step."""
+    import masspush.predictor as predictor
+
+    class Stop(Exception):
+        pass
+
+    real_replace = predictor.os.replace
+
+    def replace_then_stop(src, dst):
+        real_replace(src, dst)
+        if str(dst).endswith("checkpoint.pt"):
+            if torch.load(dst, weights_only=False)["step"] >= stop_step:
+                raise Stop
+
+    predictor.os.replace = replace_then_stop
+    try:
+        train_predictor(episodes, run_dir, config, progress=False)
+    except Stop:
+        pass
+    finally:
+        predictor.os.replace = real_replace
+
+
+def test_model_files_round_trip_and_refuse_other_settings(episodes, tmp_path):
+    q0, steps = step_inputs(episodes.select(episodes.ok), "relative")
+    model = MassPredictor(2, q0.shape[1], steps.shape[2], "relative")
+    model.set_normaliser(q0, steps)
+    path = tmp_path / "m.pt"
+    save_model(path, model, {"setting": SETTING.as_dict(), "pusher": "stiff", "policy": "random"})
+    loaded, meta = load_model(path, setting="2link-0.1-1", pusher="stiff")
+    for a, b in zip(model.state_dict().values(), loaded.state_dict().values(), strict=True):
+        torch.testing.assert_close(a, b)
+    assert loaded.features_kind == "relative" and meta["policy"] == "random"
+    with pytest.raises(ModelMismatchError, match=re.escape("trained for setting '2link-0.1-1'")):
+        load_model(path, setting="3link-0.1-1")
+    with pytest.raises(ModelMismatchError, match="'stiff' pusher"):
+        load_model(path, pusher="kuka")
+    path.write_bytes(b"not a model")
+    with pytest.raises(ValueError, match="not a readable model file"):
+        load_model(path)

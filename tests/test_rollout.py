@@ -1,0 +1,55 @@
+import numpy as np
+import pytest
+
+from masspush.config import EnvConfig, PhysicsConfig
+from masspush.rollout import (
+    EVAL,
+    NOT_RUN,
+    TRAIN,
+    Episodes,
+    RandomPolicy,
+    episode_seed,
+    run_batch,
+    run_env,
+)
+
+
+@pytest.mark.parametrize("n_links", [2, 3])
+def test_batch_and_environment_engines_record_identical_episodes(n_links):
+    config = EnvConfig(physics=PhysicsConfig(n_links=n_links))
+    idx = np.arange(12)
+    a = run_batch(config, RandomPolicy(), idx, TRAIN, 5)
+    b = run_env(config, RandomPolicy(), idx, TRAIN, 5)
+    for name in ("observations", "configs", "actions", "executed", "failure", "masses", "seed"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    assert a.observations.shape == (12, n_links + 1, n_links + 2)
+    assert a.actions.shape == (12, n_links, 2)
+
+
+def test_training_and_evaluation_seeds_never_meet():
+    train = {episode_seed(TRAIN, b, i) for b in range(3) for i in range(2000)}
+    evaluation = {episode_seed(EVAL, b, i) for b in range(3) for i in range(2000)}
+    assert len(train) == 6000 and not train & evaluation
+
+
+def test_failed_pushes_end_the_episode_in_the_record():
+    config = EnvConfig(physics=PhysicsConfig(n_links=2, settle_time_cap=0.05))
+    eps = run_batch(config, RandomPolicy(), np.arange(20), TRAIN, 0)
+    failed = ~eps.ok
+    assert failed.any()
+    for e in np.flatnonzero(failed):
+        codes = eps.failure[e]
+        if codes[0] == NOT_RUN:  # failed already while settling before the first push
+            assert (codes == NOT_RUN).all() and np.isnan(eps.observations[e]).all()
+            continue
+        first = np.flatnonzero(codes != 0)[0]
+        assert codes[first] > 0
+        assert (codes[first + 1 :] == NOT_RUN).all()
+        assert np.isnan(eps.observations[e, first + 1 :]).all()
+
+
+def test_episodes_select_and_concatenate():
+    eps = run_batch(EnvConfig(), RandomPolicy(), np.arange(6), TRAIN, 1)
+    both = Episodes.concatenate([eps.select(eps.index < 3), eps.select(eps.index >= 3)])
+    np.testing.assert_array_equal(both.observations, eps.observations)
+    np.testing.assert_allclose(eps.mass_distribution.sum(1), 1.0, rtol=1e-6)
