@@ -213,7 +213,6 @@ def run_env(
     for e, i in enumerate(indices):
         seed = episode_seed(purpose, base_seed, int(i))
         obs, info = env.reset(seed=seed)
-        one = _empty(1, k, n)
         out.index[e], out.seed[e] = i, seed
         out.masses[e], out.friction[e], out.lengths[e] = (
             info["masses"],
@@ -222,20 +221,19 @@ def run_env(
         )
         if info["failure"] is not None:
             continue
-        one.observations[0, 0], one.configs[0, 0] = obs[:d], info["config"]
+        out.observations[e, 0], out.configs[e, 0] = obs[:d], info["config"]
         policy.reset(np.array([seed], np.uint64))
         for t in range(k):
-            action = np.asarray(policy.act(one.observations, one.actions, t), np.float32)[0]
-            obs, _, terminated, _, info = env.step(action)
-            one.actions[0, t], one.executed[0, t] = action, info["push"]["action"]
-            one.failure[0, t] = failure_code(info["failure"])
+            # The policy sees this episode's history so far (views: filled in as we go).
+            action = policy.act(out.observations[e : e + 1], out.actions[e : e + 1], t)[0]
+            obs, _, terminated, _, info = env.step(np.asarray(action, np.float32))
+            out.actions[e, t], out.executed[e, t] = action, info["push"]["action"]
+            out.failure[e, t] = failure_code(info["failure"])
             if info["failure"] is not None:
                 break
-            one.observations[0, t + 1], one.configs[0, t + 1] = obs[:d], info["config"]
+            out.observations[e, t + 1], out.configs[e, t + 1] = obs[:d], info["config"]
             if terminated:
                 break
-        for name in ("observations", "configs", "actions", "executed", "failure"):
-            getattr(out, name)[e] = getattr(one, name)[0]
     return out
 
 
