@@ -204,6 +204,38 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_baselines(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
+    from masspush.baselines import run_baselines, ship
+    from masspush.predictor import FAST, TrainConfig
+    from masspush.settings import PAPER_PUSHER
+
+    pusher = args.pusher or PAPER_PUSHER
+    if args.ship_only:
+        for path in ship(args.setting, pusher):
+            print(f"shipped {path}")
+        return 0
+    train = FAST if args.fast else TrainConfig()
+    if args.features:
+        train = replace(train, features=args.features)
+    episodes = tuple(args.episodes) if args.episodes else None
+    results = run_baselines(
+        args.setting, pusher, train, eval_episodes=args.eval_episodes, episodes=episodes
+    )
+    for name, r in results["models"].items():
+        print(
+            f"{name:4s} percentage error {r['percentage_error']:6.2f}  relative "
+            f"{r['relative_error']:6.2f}  (constant floor {r['constant_floor']:.2f}, "
+            f"evaluated on {r['episodes']} episodes, {r['failures']} failed)"
+        )
+    print(f"timings: {results['timings']}")
+    if args.ship:
+        for path in ship(args.setting, pusher):
+            print(f"shipped {path}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="masspush",
@@ -266,6 +298,24 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--workers", type=int, default=None)
     ev.add_argument("--json", action="store_true", help="print one JSON object")
     ev.set_defaults(func=cmd_evaluate)
+
+    bl = sub.add_parser("baselines", help="the paper's RP and RP+ for a setting (resumable)")
+    bl.add_argument("--setting", required=True)
+    bl.add_argument("--pusher", default=None, help="default: kuka, the paper's arm")
+    bl.add_argument("--fast", action="store_true", help="train with the fast option")
+    bl.add_argument("--features", default=None, help="paper or relative")
+    bl.add_argument(
+        "--episodes",
+        type=int,
+        nargs=2,
+        default=None,
+        metavar=("RP", "RP_PLUS"),
+        help="episodes for RP and RP+ (default: the paper's)",
+    )
+    bl.add_argument("--eval-episodes", type=int, default=800)
+    bl.add_argument("--ship", action="store_true", help="copy the models into the package")
+    bl.add_argument("--ship-only", action="store_true", help="only copy finished models")
+    bl.set_defaults(func=cmd_baselines)
 
     render = sub.add_parser("render", help="render an episode to a video (MP4 or GIF)")
     render.add_argument("--setting", default="2link-0.1-1", help="named setting")

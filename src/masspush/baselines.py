@@ -1,0 +1,109 @@
+"""The paper's random-policy baselines RP and RP+ for one setting, as resumable stages.
+
+    collect (RP+'s episodes; RP uses the first half) -> train RP -> train RP+
+    -> evaluate both on 800 fresh episodes -> results/<setting>.json
+
+Every stage resumes: the collection computes only missing shards, training continues from
+its last checkpoint, and finished stages are skipped. `ship` copies the trained predictors
+into the package so that `masspush evaluate --model rp` works after install.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import time
+from dataclasses import asdict, replace
+from pathlib import Path
+from typing import Any
+
+from masspush.dataset import code_version, collect, load_dataset
+from masspush.evaluate import SHIPPED_DIR, evaluate
+from masspush.predictor import TrainConfig, train_predictor
+from masspush.settings import get_setting
+
+# Episodes for RP and RP+ [paper Sec. 4.1]: 32k / 64k (2 links), 64k / 128k (3 links).
+EPISODES = {2: (32_000, 64_000), 3: (64_000, 128_000)}
+
+
+def baseline_paths(setting: str, pusher: str, root: str | Path = ".") -> dict[str, Path]:
+    root = Path(root)
+    return {
+        "data": root / "data" / f"{setting}-{pusher}-random",
+        "rp": root / "runs" / f"{setting}-{pusher}-rp",
+        "rp+": root / "runs" / f"{setting}-{pusher}-rp+",
+        "results": root / "results" / f"{setting}-{pusher}-baselines.json",
+    }
+
+
+def run_baselines(
+    setting: str,
+    pusher: str,
+    train: TrainConfig,
+    eval_episodes: int = 800,
+    eval_seed: int = 0,
+    root: str | Path = ".",
+    episodes: tuple[int, int] | None = None,
+) -> dict[str, Any]:
+    """Collect, train RP and RP+, evaluate; returns (and writes) the results with timings."""
+    spec = get_setting(setting)
+    n_rp, n_rp_plus = episodes or EPISODES[spec.n_links]
+    paths = baseline_paths(setting, pusher, root)
+    timings: dict[str, float] = {}
+
+    t0 = time.perf_counter()
+    collect(spec, paths["data"], episodes=n_rp_plus, pusher=pusher)
+    timings["collect_s"] = time.perf_counter() - t0
+
+    results: dict[str, Any] = {
+        "setting": setting,
+        "pusher": pusher,
+        "code_version": code_version(),
+        "train_config": asdict(train),
+        "models": {},
+    }
+    for name, n in (("rp", n_rp), ("rp+", n_rp_plus)):
+        manifest, data = load_dataset(paths["data"], limit=n)
+        meta = {
+            "setting": manifest.setting,
+            "pusher": pusher,
+            "policy": "random",
+            "dataset": str(paths["data"]),
+            "dataset_episodes": n,
+            "code_version": code_version(),
+            "baseline": name,
+        }
+        t0 = time.perf_counter()
+        _, summary = train_predictor(data, paths[name], replace(train), meta)
+        timings[f"train_{name}_s"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        scores = evaluate(
+            setting, paths[name] / "predictor.pt", episodes=eval_episodes, seed=eval_seed
+        )
+        timings[f"evaluate_{name}_s"] = time.perf_counter() - t0
+        results["models"][name] = {
+            "train_episodes": n,
+            "usable_episodes": summary["episodes"],
+            "best_step": summary["best_step"],
+            "samples_per_s": summary["samples_per_s"],
+            **scores,
+        }
+    results["timings"] = timings
+    paths["results"].parent.mkdir(parents=True, exist_ok=True)
+    paths["results"].write_text(json.dumps(results, indent=2))
+    return results
+
+
+def ship(setting: str, pusher: str, root: str | Path = ".") -> list[Path]:
+    """Copy the trained RP and RP+ predictors into the package's shipped models."""
+    paths = baseline_paths(setting, pusher, root)
+    shipped = []
+    for name in ("rp", "rp+"):
+        source = paths[name] / "predictor.pt"
+        if not source.exists():
+            raise ValueError(f"{source} does not exist: run the baselines first")
+        target = SHIPPED_DIR / setting / f"{name}.pt"
+        target.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(source, target)
+        shipped.append(target)
+    return shipped

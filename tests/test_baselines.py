@@ -1,0 +1,28 @@
+import json
+
+import masspush.baselines as baselines
+import masspush.evaluate as evaluate_module
+from masspush.evaluate import evaluate
+from masspush.predictor import TrainConfig
+
+
+def test_baselines_recipe_end_to_end_and_shipping(tmp_path, monkeypatch):
+    tiny = TrainConfig(
+        optimizer="adam", steps=200, batch_size=32, lr=3e-3, eval_every=100, features="relative"
+    )
+    results = baselines.run_baselines(
+        "2link-0.1-1", "stiff", tiny, eval_episodes=40, root=tmp_path, episodes=(60, 120)
+    )
+    written = json.loads((tmp_path / "results" / "2link-0.1-1-stiff-baselines.json").read_text())
+    assert written == json.loads(json.dumps(results))
+    for name, n in (("rp", 60), ("rp+", 120)):
+        model = results["models"][name]
+        assert model["train_episodes"] == n >= model["usable_episodes"]
+        assert {"percentage_error", "constant_floor", "failures"} <= set(model)
+    assert set(results["timings"]) >= {"collect_s", "train_rp_s", "train_rp+_s"}
+    # Shipping puts the models where `--model rp` finds them.
+    monkeypatch.setattr(baselines, "SHIPPED_DIR", tmp_path / "models")
+    monkeypatch.setattr(evaluate_module, "SHIPPED_DIR", tmp_path / "models")
+    baselines.ship("2link-0.1-1", "stiff", root=tmp_path)
+    shipped = evaluate("2link-0.1-1", "rp", episodes=40)
+    assert shipped["mae"] == results["models"]["rp"]["mae"]  # same model, same episodes
