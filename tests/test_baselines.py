@@ -26,3 +26,7 @@ def test_baselines_recipe_end_to_end_and_shipping(tmp_path, monkeypatch):
     baselines.ship("2link-0.1-1", "stiff", root=tmp_path)
     shipped = evaluate("2link-0.1-1", "rp", episodes=40)
     assert shipped["mae"] == results["models"]["rp"]["mae"]  # same model, same episodes
+    table = baselines.baselines_table("stiff", root=tmp_path)
+    row = next(line for line in table.splitlines() if line.startswith("| 2link-0.1-1 "))
+    assert f"**{results['models']['rp']['percentage_error']:.2f}**" in row and "15.26" in row
+    assert table.count("not yet") == 10  # the five settings without results, RP and RP+

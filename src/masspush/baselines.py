@@ -107,3 +107,40 @@ def ship(setting: str, pusher: str, root: str | Path = ".") -> list[Path]:
         shutil.copyfile(source, target)
         shipped.append(target)
     return shipped
+
+
+# The paper's Table 1, percentage error (its metric as coded) [paper, Table 1].
+PAPER_TABLE = {
+    "2link-0.1-1": {"rp": 15.26, "rp+": 14.80, "tp": 10.39, "tp+": 6.07},
+    "2link-1-10": {"rp": 17.12, "rp+": 17.40, "tp": 14.03, "tp+": 8.26},
+    "2link-0.1-10": {"rp": 26.68, "rp+": 26.78, "tp": 21.27, "tp+": 12.03},
+    "3link-0.1-1": {"rp": 29.08, "rp+": 28.88, "tp": 26.89, "tp+": 12.02},
+    "3link-1-10": {"rp": 30.88, "rp+": 30.84, "tp": 29.75, "tp+": 15.99},
+    "3link-0.1-10": {"rp": 54.28, "rp+": 53.59, "tp": 50.49, "tp+": 23.93},
+}
+
+
+def baselines_table(pusher: str, root: str | Path = ".") -> str:
+    """Markdown: measured RP / RP+ beside the paper's, for every setting with results."""
+    lines = [
+        "| setting | paper RP | ours RP | paper RP+ | ours RP+ | constant floor "
+        "| ours RP / RP+ relative error | wall clock (train RP, RP+) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for setting, paper in PAPER_TABLE.items():
+        path = baseline_paths(setting, pusher, root)["results"]
+        if not path.exists():
+            lines.append(
+                f"| {setting} | {paper['rp']:.2f} | not yet | {paper['rp+']:.2f} | not yet | | | |"
+            )
+            continue
+        r = json.loads(path.read_text())
+        rp, rpp, t = r["models"]["rp"], r["models"]["rp+"], r["timings"]
+        lines.append(
+            f"| {setting} | {paper['rp']:.2f} | **{rp['percentage_error']:.2f}** "
+            f"| {paper['rp+']:.2f} | **{rpp['percentage_error']:.2f}** "
+            f"| {rp['constant_floor']:.2f} | {rp['relative_error']:.2f} / "
+            f"{rpp['relative_error']:.2f} | {t['train_rp_s'] / 60:.1f} min, "
+            f"{t['train_rp+_s'] / 60:.1f} min |"
+        )
+    return "\n".join(lines)

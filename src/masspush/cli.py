@@ -212,10 +212,17 @@ def cmd_baselines(args: argparse.Namespace) -> int:
     from masspush.settings import PAPER_PUSHER
 
     pusher = args.pusher or PAPER_PUSHER
+    if args.table:
+        from masspush.baselines import baselines_table
+
+        print(baselines_table(pusher))
+        return 0
     if args.ship_only:
         for path in ship(args.setting, pusher):
             print(f"shipped {path}")
         return 0
+    if args.setting is None:
+        raise ValueError("--setting is required (unless --table)")
     train = FAST if args.fast else TrainConfig()
     if args.features:
         train = replace(train, features=args.features)
@@ -300,7 +307,8 @@ def build_parser() -> argparse.ArgumentParser:
     ev.set_defaults(func=cmd_evaluate)
 
     bl = sub.add_parser("baselines", help="the paper's RP and RP+ for a setting (resumable)")
-    bl.add_argument("--setting", required=True)
+    bl.add_argument("--setting", default=None)
+    bl.add_argument("--table", action="store_true", help="print the results table and stop")
     bl.add_argument("--pusher", default=None, help="default: kuka, the paper's arm")
     bl.add_argument("--fast", action="store_true", help="train with the fast option")
     bl.add_argument("--features", default=None, help="paper or relative")
