@@ -276,3 +276,57 @@ def pushers_table(results: list[PusherBenchmark]) -> str:
             cells = " | ".join(f"{r.tip_speed[v]:.2f}" for r in arms)
             lines.append(f"| {v:g} | {cells} |")
     return "\n".join(lines)
+
+
+def bench_data(setting: str, pusher: str, episodes: int, workers: int | None = None) -> dict:
+    """Episodes per second collected with every core (the collection engine, no disk)."""
+    from masspush.config import EnvConfig
+    from masspush.rollout import TRAIN, RandomPolicy, run_episodes
+    from masspush.settings import get_setting
+
+    spec = get_setting(setting)
+    config = EnvConfig(physics=spec.physics(), pusher=pusher)
+    t0 = time.perf_counter()
+    run = run_episodes(config, RandomPolicy(), np.arange(episodes), TRAIN, 12345, workers)
+    elapsed = time.perf_counter() - t0
+    return {
+        "setting": setting,
+        "pusher": pusher,
+        "episodes": episodes,
+        "episodes_per_s": episodes / elapsed,
+        "pushes_per_s": episodes * config.pushes / elapsed,
+        "failed_episodes": int((~run.ok).sum()),
+        "threads_or_workers": workers or os.cpu_count(),
+    }
+
+
+def bench_train(
+    setting: str = "2link-0.1-1", episodes: int = 4000, steps: int = 2000
+) -> list[dict]:
+    """Training samples per second: the paper's SGD (batch 16) and the fast Adam (batch 256)."""
+    import tempfile
+
+    from masspush.config import EnvConfig
+    from masspush.predictor import FAST, TrainConfig, train_predictor
+    from masspush.rollout import TRAIN, RandomPolicy, run_batch
+    from masspush.settings import get_setting
+
+    spec = get_setting(setting)
+    data = run_batch(
+        EnvConfig(physics=spec.physics()), RandomPolicy(), np.arange(episodes), TRAIN, 0
+    )
+    rows = []
+    for name, config in (("paper SGD, batch 16", TrainConfig()), ("fast Adam, batch 256", FAST)):
+        config = replace(config, steps=steps, eval_every=steps, checkpoint_every=steps)
+        with tempfile.TemporaryDirectory() as run:
+            _, summary = train_predictor(data, run, config, progress=False)
+        rows.append(
+            {
+                "option": name,
+                "steps": steps,
+                "batch_size": config.batch_size,
+                "samples_per_s": summary["samples_per_s"],
+                "steps_per_s": summary["samples_per_s"] / config.batch_size,
+            }
+        )
+    return rows

@@ -82,6 +82,21 @@ def cmd_bench_pushers(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench_data(args: argparse.Namespace) -> int:
+    from masspush.bench import bench_data
+
+    print(json.dumps(bench_data(args.setting, args.pusher, args.episodes, args.workers)))
+    return 0
+
+
+def cmd_bench_train(args: argparse.Namespace) -> int:
+    from masspush.bench import bench_train
+
+    for row in bench_train(args.setting, args.episodes, args.steps):
+        print(json.dumps(row))
+    return 0
+
+
 def cmd_bench_physics(args: argparse.Namespace) -> int:
     from dataclasses import asdict
 
@@ -354,6 +369,17 @@ def build_parser() -> argparse.ArgumentParser:
     push.add_argument("--seed", type=int, default=0)
     push.add_argument("--json", action="store_true", help="print JSON")
     push.set_defaults(func=cmd_bench_pushers)
+    bd = bench_sub.add_parser("data", help="collection speed, episodes per second")
+    bd.add_argument("--setting", default="2link-0.1-1")
+    bd.add_argument("--pusher", default="kuka")
+    bd.add_argument("--episodes", type=int, default=1000)
+    bd.add_argument("--workers", type=int, default=None)
+    bd.set_defaults(func=cmd_bench_data)
+    bt = bench_sub.add_parser("train", help="predictor training speed, samples per second")
+    bt.add_argument("--setting", default="2link-0.1-1")
+    bt.add_argument("--episodes", type=int, default=4000)
+    bt.add_argument("--steps", type=int, default=2000)
+    bt.set_defaults(func=cmd_bench_train)
     phys = bench_sub.add_parser(
         "physics", help="rest-pose convergence in the time step, and chaotic sensitivity"
     )

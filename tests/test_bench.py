@@ -1,0 +1,9 @@
+from masspush.bench import bench_data, bench_train
+
+
+def test_collection_and_training_benchmarks_report_rates():
+    data = bench_data("2link-0.1-1", "stiff", episodes=20)
+    assert data["episodes_per_s"] > 0 and data["pushes_per_s"] == 2 * data["episodes_per_s"]
+    rows = bench_train(episodes=60, steps=20)
+    assert [r["batch_size"] for r in rows] == [16, 256]
+    assert all(r["samples_per_s"] > 0 for r in rows)
