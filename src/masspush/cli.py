@@ -14,25 +14,55 @@ def _format(values: np.ndarray, digits: int = 3) -> str:
     return "[" + ", ".join(f"{v:+.{digits}f}" for v in np.asarray(values, dtype=float)) + "]"
 
 
-def cmd_demo(args: argparse.Namespace) -> int:
-    """Random pushes on a random chain: print each push and the rest pose it led to."""
-    from masspush.env import ChainEnv
+def _shipped_estimator(n_links: int, mass_range, pusher: str):
+    """The shipped RP+ predictor for this chain and pusher, if there is one: (model, name)."""
+    from masspush.evaluate import resolve_model
+    from masspush.predictor import load_model
+    from masspush.settings import SETTINGS
 
-    env = ChainEnv(n_links=args.links, mass_range=tuple(args.mass_range), pushes=args.pushes)
+    for setting in SETTINGS.values():
+        if setting.n_links == n_links and setting.mass_range == tuple(mass_range):
+            try:
+                model, _ = load_model(resolve_model("rp+", setting.name), setting.name, pusher)
+            except ValueError:
+                return None
+            return model, f"rp+ ({setting.name}, {pusher})"
+    return None
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    """Random pushes on a random chain: each push, the rest pose, and (where a trained
+    predictor ships for this setting) the estimate of the mass distribution after it."""
+    from masspush.env import ChainEnv
+    from masspush.rollout import Episodes
+    from masspush.settings import PAPER_PUSHER
+
+    pusher = args.pusher or PAPER_PUSHER
+    env = ChainEnv(
+        n_links=args.links, mass_range=tuple(args.mass_range), pushes=args.pushes, pusher=pusher
+    )
     obs, info = env.reset(seed=args.seed)
     env.action_space.seed(args.seed)  # the whole demo is reproducible from its seed
-    n = args.links
-    print(f"A {n}-link chain on a table (seed {args.seed}); the robot may only push it and look.")
+    n, k_max = args.links, env.config.pushes
+    estimator = _shipped_estimator(n, args.mass_range, pusher)
+    d = env.physics.obs_dim
+    history = np.full((1, k_max + 1, d), np.nan, np.float32)
+    actions = np.full((1, k_max, 2), np.nan, np.float32)
+    history[0, 0] = obs[:d]
+    truth = info["mass_distribution"]
+    print(f"A {n}-link chain on a table (seed {args.seed}), pushed by the {pusher} pusher;")
+    print("the robot may only push it and look at where it comes to rest.")
     print(f"  true masses        {_format(info['masses'])} kg")
-    print(f"  mass distribution  {_format(info['mass_distribution'])}   <- what is to be estimated")
+    print(f"  mass distribution  {_format(truth)}   <- what is to be estimated")
     print(f"  table friction     {info['friction']:.3f}")
     print(f"  link lengths       {_format(info['lengths'])} m")
-    print(f"  rest pose q0       {_format(obs[: 2 + n])}  (x, y, yaw, joint angles; noisy)")
+    print(f"  rest pose q0       {_format(obs[:d])}  (x, y, yaw, joint angles; noisy)")
     terminated = False
     k = 0
     while not terminated:
         action = env.action_space.sample()
         obs, _, terminated, _, info = env.step(action)
+        actions[0, k], history[0, k + 1] = action, obs[:d]
         k += 1
         p = info["push"]
         side = "from the right" if p["side"] > 0 else "from the left"
@@ -42,9 +72,31 @@ def cmd_demo(args: argparse.Namespace) -> int:
         )
         if info["failure"]:
             print(f"  push failed: {info['failure']}")
-        else:
-            print(f"  at rest after {info['settle_time']:.2f} s: q{k} = {_format(obs[: 2 + n])}")
-    print("No estimator is trained yet: later versions print the estimate after each push.")
+            break
+        print(f"  at rest after {info['settle_time']:.2f} s: q{k} = {_format(obs[:d])}")
+        if estimator is not None:
+            so_far = Episodes(
+                index=np.zeros(1, np.int64),
+                seed=np.zeros(1, np.uint64),
+                observations=history[:, : k + 1],
+                configs=history[:, : k + 1],
+                actions=actions[:, :k],
+                executed=actions[:, :k],
+                failure=np.zeros((1, k), np.int8),
+                masses=info["masses"][None].astype(np.float32),
+                friction=np.array([info["friction"]], np.float32),
+                lengths=info["lengths"][None].astype(np.float32),
+            )
+            estimate = estimator[0].predict(so_far)[0, -1]
+            error = np.abs(estimate - truth).mean()
+            print(f"  estimate           {_format(estimate)}   (mean absolute error {error:.3f})")
+    if estimator is None:
+        print("No trained predictor ships for this setting and pusher yet.")
+    else:
+        print(
+            f"Estimates from the shipped {estimator[1]} predictor (random pushes, as it was "
+            "trained); the learned pushing policy comes with a later version."
+        )
     return 0
 
 
@@ -280,6 +332,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo = sub.add_parser("demo", help="push a random chain and print what happens")
     chain_args(demo)
     demo.add_argument("--pushes", type=int, default=None, help="pushes (default: one per link)")
+    demo.add_argument("--pusher", default=None, help="stiff, kuka or ur10 (default: kuka)")
     demo.set_defaults(func=cmd_demo)
 
     col = sub.add_parser("collect", help="collect rollout episodes into a dataset (resumable)")
