@@ -149,6 +149,32 @@ def cmd_bench_train(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench_motion(args: argparse.Namespace) -> int:
+    """How far the chains of a dataset moved per push (is there anything to observe?)."""
+    from masspush.dataset import load_dataset
+
+    manifest, eps = load_dataset(args.data, limit=args.episodes)
+    eps = eps.select(eps.ok)
+    c = eps.configs.astype(float)
+    moved = 1000 * np.linalg.norm(c[:, 1:, :2] - c[:, :-1, :2], axis=-1).ravel()
+    joint = np.abs(c[:, 1:, 3] - c[:, :-1, 3]).ravel()
+    print(
+        json.dumps(
+            {
+                "dataset": str(args.data),
+                "setting": manifest.setting["name"],
+                "pusher": manifest.pusher,
+                "pushes": int(moved.size),
+                "root_moved_mm_median": float(np.median(moved)),
+                "root_moved_mm_p90": float(np.percentile(moved, 90)),
+                "share_moved_under_2mm": float(np.mean(moved < 2)),
+                "first_joint_change_rad_median": float(np.median(joint)),
+            }
+        )
+    )
+    return 0
+
+
 def cmd_bench_physics(args: argparse.Namespace) -> int:
     from dataclasses import asdict
 
@@ -433,6 +459,10 @@ def build_parser() -> argparse.ArgumentParser:
     bt.add_argument("--episodes", type=int, default=4000)
     bt.add_argument("--steps", type=int, default=2000)
     bt.set_defaults(func=cmd_bench_train)
+    bm = bench_sub.add_parser("motion", help="how far a dataset's chains moved per push")
+    bm.add_argument("--data", required=True)
+    bm.add_argument("--episodes", type=int, default=8000)
+    bm.set_defaults(func=cmd_bench_motion)
     phys = bench_sub.add_parser(
         "physics", help="rest-pose convergence in the time step, and chaotic sensitivity"
     )
