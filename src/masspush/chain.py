@@ -152,6 +152,7 @@ def build_spec(
     spec = mujoco.MjSpec()
     spec.modelname = f"chain{chain.n_links}"
     spec.compiler.degree = False  # MjSpec defaults to degrees: joint ranges here are radians
+    spec.memory = physics.arena_memory
     opt = spec.option
     opt.timestep = physics.timestep
     # Stiff velocity servos need implicit damping; elliptic cones give isotropic Coulomb
