@@ -9,12 +9,27 @@ import gymnasium as gym
 import numpy as np
 
 from masspush.actions import check_action
-from masspush.chain import ChainParams, sample_chain
+from masspush.chain import ChainParams, sample_chain, wrap_angle
 from masspush.config import EnvConfig, PhysicsConfig
 from masspush.pusher import make_pusher
 from masspush.simulate import ChainSim, PushOutcome
 
 ENV_ID = "masspush/Chain-v0"
+
+
+def noisy_observation(config: np.ndarray, rng: np.random.Generator, sigma: float) -> np.ndarray:
+    """A configuration as sensed: Gaussian noise on every component, yaw wrapped again.
+
+    The one place sensing noise is drawn: the batch engine (`masspush.rollout`) calls it too,
+    so both draw the same numbers from the same generator."""
+    noisy = config + rng.normal(0.0, sigma, size=config.shape)
+    noisy[2] = wrap_angle(noisy[2])
+    return noisy
+
+
+def executed_action(action: np.ndarray, rng: np.random.Generator, sigma: float) -> np.ndarray:
+    """An action as executed: Gaussian actuation noise, clipped back into the action box."""
+    return np.clip(action + rng.normal(0.0, sigma, size=2), -1.0, 1.0)
 
 
 class ChainEnv(gym.Env):
@@ -136,8 +151,7 @@ class ChainEnv(gym.Env):
         if self.sim is None or self._done:
             raise RuntimeError("the episode is over (or never began): call reset() first")
         action = check_action(action)
-        noisy = action + self.np_random.normal(0.0, self.config.action_noise, size=2)
-        executed = np.clip(noisy, -1.0, 1.0)
+        executed = executed_action(action, self.np_random, self.config.action_noise)
         outcome = self.sim.push(executed)
         self._pushes_done += 1
         self._done = outcome.failure is not None or self._pushes_done >= self.config.pushes
@@ -148,8 +162,7 @@ class ChainEnv(gym.Env):
     def _observe(self) -> np.ndarray:
         assert self.sim is not None and self.chain is not None
         config = self.sim.config()
-        noisy = config + self.np_random.normal(0.0, self.config.obs_noise, size=config.shape)
-        noisy[2] = (noisy[2] + np.pi) % (2 * np.pi) - np.pi
+        noisy = noisy_observation(config, self.np_random, self.config.obs_noise)
         return np.concatenate([noisy, self.chain.lengths]).astype(np.float32)
 
     def _info(self, failure: str | None) -> dict[str, Any]:

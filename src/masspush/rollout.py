@@ -22,7 +22,7 @@ from typing import Protocol
 
 import numpy as np
 
-from masspush.chain import sample_chain, wrap_angle
+from masspush.chain import sample_chain
 from masspush.config import EnvConfig
 from masspush.simulate import FAILURES
 
@@ -137,12 +137,6 @@ def _empty(e: int, k: int, n: int) -> Episodes:
     )
 
 
-def _noisy(config: np.ndarray, rng: np.random.Generator, sigma: float) -> np.ndarray:
-    noisy = config + rng.normal(0.0, sigma, size=config.shape)
-    noisy[2] = wrap_angle(noisy[2])
-    return noisy
-
-
 def run_batch(
     env_config: EnvConfig,
     policy: Policy,
@@ -153,9 +147,11 @@ def run_batch(
 ) -> Episodes:
     """Episodes on the batch path (stiff pusher only), drawing noise exactly as ChainEnv."""
     from masspush.batch import ChainBatch
+    from masspush.env import executed_action, noisy_observation
 
     physics = env_config.physics
     k, n = env_config.pushes, physics.n_links
+    obs_sigma = env_config.obs_noise
     out = _empty(len(indices), k, n)
     seeds = np.array([episode_seed(purpose, base_seed, int(i)) for i in indices], np.uint64)
     rngs = [np.random.default_rng(int(s)) for s in seeds]
@@ -169,14 +165,13 @@ def run_batch(
     configs = batch.configs()
     for e in np.flatnonzero(alive):
         out.configs[e, 0] = configs[e]
-        out.observations[e, 0] = _noisy(configs[e], rngs[e], env_config.obs_noise)
+        out.observations[e, 0] = noisy_observation(configs[e], rngs[e], obs_sigma)
     policy.reset(seeds)
     for t in range(k):
         actions = np.asarray(policy.act(out.observations, out.actions, t), np.float32)
         executed = np.zeros((len(indices), 2))
         for e in np.flatnonzero(alive):
-            noisy = actions[e] + rngs[e].normal(0.0, env_config.action_noise, size=2)
-            executed[e] = np.clip(noisy, -1.0, 1.0)
+            executed[e] = executed_action(actions[e], rngs[e], env_config.action_noise)
         batch.failed[:] = ~alive  # chains whose episode is over are not pushed
         outcomes = batch.push(executed)
         configs = batch.configs()
@@ -187,7 +182,9 @@ def run_batch(
                 alive[e] = False
                 continue
             out.configs[e, t + 1] = configs[e]
-            out.observations[e, t + 1] = _noisy(configs[e], rngs[e], env_config.obs_noise)
+            out.observations[e, t + 1] = noisy_observation(
+                configs[e], rngs[e], env_config.obs_noise
+            )
     return out
 
 
