@@ -42,3 +42,14 @@ def test_demo_is_reproducible_from_its_seed():
     first, second = run_cli("demo", "--seed", "5"), run_cli("demo", "--seed", "5")
     assert first.returncode == 0 and first.stdout == second.stdout
     assert run_cli("demo", "--seed", "6").stdout != first.stdout
+
+
+def test_reproduce_table_only_writes_the_table_beside_the_papers(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main(["reproduce", "--settings", "2link-0.1-1,3link-1-10", "--table-only"]) == 0
+    table = (tmp_path / "results" / "table1.md").read_text()
+    assert "| 3link-1-10 | stiff |" in table and "15.99" in table  # the paper's TP+
+    assert table.count("not yet") == 8  # nothing run here yet
+    assert (tmp_path / "results" / "meta-iterations.png").stat().st_size > 0
+    assert main(["train", "--setting", "4link"]) == 2
+    assert "unknown setting" in capsys.readouterr().err

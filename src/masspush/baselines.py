@@ -120,24 +120,27 @@ PAPER_TABLE = {
 }
 
 
-def baselines_table(pusher: str, root: str | Path = ".") -> str:
-    """Markdown: measured RP / RP+ beside the paper's, for every setting with results."""
+def baselines_table(pusher: str | None = None, root: str | Path = ".") -> str:
+    """Markdown: measured RP / RP+ beside the paper's, for every setting with results, each
+    with `pusher` (default: the setting's own)."""
     lines = [
-        "| setting | paper RP | ours RP | paper RP+ | ours RP+ | constant floor "
+        "| setting | pusher | paper RP | ours RP | paper RP+ | ours RP+ | constant floor "
         "| ours RP / RP+ relative error | wall clock (train RP, RP+) |",
-        "|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for setting, paper in PAPER_TABLE.items():
-        path = baseline_paths(setting, pusher, root)["results"]
+        used = pusher or get_setting(setting).pusher
+        path = baseline_paths(setting, used, root)["results"]
         if not path.exists():
             lines.append(
-                f"| {setting} | {paper['rp']:.2f} | not yet | {paper['rp+']:.2f} | not yet | | | |"
+                f"| {setting} | {used} | {paper['rp']:.2f} | not yet | {paper['rp+']:.2f} "
+                "| not yet | | | |"
             )
             continue
         r = json.loads(path.read_text())
         rp, rpp, t = r["models"]["rp"], r["models"]["rp+"], r["timings"]
         lines.append(
-            f"| {setting} | {paper['rp']:.2f} | **{rp['percentage_error']:.2f}** "
+            f"| {setting} | {used} | {paper['rp']:.2f} | **{rp['percentage_error']:.2f}** "
             f"| {paper['rp+']:.2f} | **{rpp['percentage_error']:.2f}** "
             f"| {rp['constant_floor']:.2f} | {rp['relative_error']:.2f} / "
             f"{rpp['relative_error']:.2f} | {t['train_rp_s'] / 60:.1f} min, "

@@ -213,10 +213,10 @@ def cmd_render(args: argparse.Namespace) -> int:
 
 def cmd_collect(args: argparse.Namespace) -> int:
     from masspush.dataset import collect
-    from masspush.settings import PAPER_PUSHER, get_setting
+    from masspush.settings import get_setting
 
-    args.pusher = args.pusher or PAPER_PUSHER
     setting = get_setting(args.setting, args.settings_file)
+    args.pusher = args.pusher or setting.pusher
     manifest = collect(
         setting,
         args.out,
@@ -302,20 +302,20 @@ def cmd_baselines(args: argparse.Namespace) -> int:
 
     from masspush.baselines import run_baselines, ship
     from masspush.predictor import FAST, TrainConfig
-    from masspush.settings import PAPER_PUSHER
+    from masspush.settings import get_setting
 
-    pusher = args.pusher or PAPER_PUSHER
     if args.table:
         from masspush.baselines import baselines_table
 
-        print(baselines_table(pusher))
+        print(baselines_table(args.pusher))
         return 0
+    if args.setting is None:
+        raise ValueError("--setting is required (unless --table)")
+    pusher = args.pusher or get_setting(args.setting).pusher
     if args.ship_only:
         for path in ship(args.setting, pusher):
             print(f"shipped {path}")
         return 0
-    if args.setting is None:
-        raise ValueError("--setting is required (unless --table)")
     train = FAST if args.fast else TrainConfig()
     if args.features:
         train = replace(train, features=args.features)
@@ -334,6 +334,101 @@ def cmd_baselines(args: argparse.Namespace) -> int:
         for path in ship(args.setting, pusher):
             print(f"shipped {path}")
     return 0
+
+
+def _recipe_config(args: argparse.Namespace):
+    from masspush.policy import PolicyConfig
+    from masspush.train import RecipeConfig
+
+    policy = PolicyConfig(algo=args.algo, n_envs=args.envs, steps=args.ppo_steps)
+    return RecipeConfig(
+        meta_iterations=args.meta_iterations,
+        first_episodes=args.first_episodes,
+        iteration_episodes=args.iteration_episodes,
+        final_episodes=args.final_episodes,
+        policy=policy,
+        eval_episodes=args.eval_episodes,
+        seed=args.seed,
+    )
+
+
+def cmd_train(args: argparse.Namespace) -> int:
+    from masspush.evaluate import SHIPPED_DIR
+    from masspush.reproduce import train_dir
+    from masspush.settings import get_setting
+    from masspush.train import Recipe
+
+    setting = get_setting(args.setting, args.settings_file)
+    pusher = args.pusher or setting.pusher
+    out = args.out or train_dir(setting.name, pusher)
+    state = Recipe(setting, pusher, out, _recipe_config(args)).run()
+    for h in state["history"]:
+        print(
+            f"{h['stage']:16s} percentage error {h['percentage_error']:6.2f}  "
+            f"(constant floor {h['constant_floor']:.2f}, {h['episodes']} episodes)"
+        )
+    print(f"wall clock per stage (s): {state['timings']}")
+    if args.ship:
+        for path in Recipe(setting, pusher, out, _recipe_config(args)).ship(
+            SHIPPED_DIR / setting.name
+        ):
+            print(f"shipped {path}")
+    return 0
+
+
+def cmd_reproduce(args: argparse.Namespace) -> int:
+    from masspush.baselines import PAPER_TABLE, run_baselines, ship
+    from masspush.evaluate import SHIPPED_DIR
+    from masspush.predictor import FAST
+    from masspush.reproduce import train_dir, write_outputs
+    from masspush.settings import get_setting
+    from masspush.train import Recipe
+
+    names = list(PAPER_TABLE) if args.settings == "all" else args.settings.split(",")
+    settings = [get_setting(name) for name in names]
+    pushers = {s.name: args.pusher or s.pusher for s in settings}
+    if not args.table_only:
+        from dataclasses import replace
+
+        for s in settings:
+            run_baselines(s.name, pushers[s.name], replace(FAST, features="relative"))
+            recipe = Recipe(
+                s, pushers[s.name], train_dir(s.name, pushers[s.name]), _recipe_config(args)
+            )
+            recipe.run()
+            if args.ship:
+                ship(s.name, pushers[s.name])
+                recipe.ship(SHIPPED_DIR / s.name)
+    for path in write_outputs(names, pushers):
+        print(f"wrote {path}")
+    return 0
+
+
+def _recipe_args(p: argparse.ArgumentParser) -> None:
+    from masspush.policy import ALGOS
+
+    p.add_argument("--pusher", default=None, help="default: the setting's pusher")
+    p.add_argument(
+        "--algo",
+        default="recurrent",
+        choices=ALGOS,
+        help="recurrent: RecurrentPPO, the paper's LSTM policy; mlp: PPO over the "
+        "padded push history",
+    )
+    p.add_argument("--meta-iterations", type=int, default=6)
+    p.add_argument("--ppo-steps", type=int, default=75_000, help="per meta-iteration")
+    p.add_argument("--envs", type=int, default=16, help="parallel environments")
+    p.add_argument(
+        "--first-episodes",
+        type=int,
+        default=None,
+        help="random episodes for the first predictor (default 16k / 32k)",
+    )
+    p.add_argument("--iteration-episodes", type=int, default=None)
+    p.add_argument("--final-episodes", type=int, default=None)
+    p.add_argument("--eval-episodes", type=int, default=800)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--ship", action="store_true", help="copy TP and TP+ into the package")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -368,7 +463,7 @@ def build_parser() -> argparse.ArgumentParser:
     col.add_argument("--episodes", type=int, required=True)
     col.add_argument("--out", required=True, help="dataset directory (resumes if it exists)")
     col.add_argument(
-        "--pusher", default=None, help="stiff, kuka or ur10 (default: kuka, the paper's arm)"
+        "--pusher", default=None, help="stiff, kuka or ur10 (default: the setting's pusher)"
     )
     col.add_argument("--seed", type=int, default=0, help="base seed of the episodes")
     col.add_argument("--shard-size", type=int, default=1000)
@@ -403,7 +498,11 @@ def build_parser() -> argparse.ArgumentParser:
     bl = sub.add_parser("baselines", help="the paper's RP and RP+ for a setting (resumable)")
     bl.add_argument("--setting", default=None)
     bl.add_argument("--table", action="store_true", help="print the results table and stop")
-    bl.add_argument("--pusher", default=None, help="default: kuka, the paper's arm")
+    bl.add_argument(
+        "--pusher",
+        default=None,
+        help="default: the setting's (kuka, the paper's arm; stiff for 10 kg links)",
+    )
     bl.add_argument("--fast", action="store_true", help="train with the fast option")
     bl.add_argument("--features", default=None, help="paper or relative")
     bl.add_argument(
@@ -418,6 +517,21 @@ def build_parser() -> argparse.ArgumentParser:
     bl.add_argument("--ship", action="store_true", help="copy the models into the package")
     bl.add_argument("--ship-only", action="store_true", help="only copy finished models")
     bl.set_defaults(func=cmd_baselines)
+
+    tr = sub.add_parser(
+        "train", help="the alternating recipe: predictor, then policy / predictor rounds"
+    )
+    tr.add_argument("--setting", required=True)
+    tr.add_argument("--settings-file", default=None, help="TOML file with custom settings")
+    tr.add_argument("--out", default=None, help="run directory (resumes if it exists)")
+    _recipe_args(tr)
+    tr.set_defaults(func=cmd_train)
+
+    rep = sub.add_parser("reproduce", help="the paper's Table 1 and figures (resumable)")
+    rep.add_argument("--settings", default="all", help="all, or a comma-separated list")
+    rep.add_argument("--table-only", action="store_true", help="only write table and figures")
+    _recipe_args(rep)
+    rep.set_defaults(func=cmd_reproduce)
 
     render = sub.add_parser("render", help="render an episode to a video (MP4 or GIF)")
     render.add_argument("--setting", default="2link-0.1-1", help="named setting")

@@ -30,7 +30,7 @@ import numpy as np
 from tqdm import tqdm
 
 from masspush.config import EnvConfig
-from masspush.rollout import POLICIES, TRAIN, Episodes, run_episodes
+from masspush.rollout import POLICIES, TRAIN, Episodes, Policy, run_episodes
 from masspush.settings import Setting
 
 SCHEMA_VERSION = 1
@@ -117,18 +117,22 @@ def collect(
     out: str | os.PathLike,
     episodes: int,
     pusher: str,
-    policy: str = "random",
+    policy: str | Policy = "random",
     base_seed: int = 0,
     shard_size: int = 1000,
     env_config: EnvConfig | None = None,
     workers: int | None = None,
     progress: bool = True,
 ) -> Manifest:
-    """Collect `episodes` episodes into `out`, resuming whatever is already there."""
+    """Collect `episodes` episodes into `out`, resuming whatever is already there.
+
+    `policy`: a registered policy's name, or a `Policy` object (a trained one)."""
     if episodes < 1 or shard_size < 1:
         raise ValueError(f"episodes and shard_size must be >= 1, got {episodes}, {shard_size}")
-    if policy not in POLICIES:
-        raise ValueError(f"unknown policy {policy!r}; known: {sorted(POLICIES)}")
+    if isinstance(policy, str):
+        if policy not in POLICIES:
+            raise ValueError(f"unknown policy {policy!r}; known: {sorted(POLICIES)}")
+        policy = POLICIES[policy]()
     root = Path(out)
     root.mkdir(parents=True, exist_ok=True)
     env_config = env_config or EnvConfig(physics=setting.physics(), pusher=pusher)
@@ -136,7 +140,7 @@ def collect(
         schema_version=SCHEMA_VERSION,
         setting=setting.as_dict(),
         pusher=pusher,
-        policy=policy,
+        policy=policy.name,
         obs_noise=env_config.obs_noise,
         action_noise=env_config.action_noise,
         pushes=env_config.pushes,
@@ -168,7 +172,7 @@ def collect(
         for j in todo:
             lo = j * shard_size
             indices = np.arange(lo, lo + _shard_len(manifest, j))
-            eps = run_episodes(env_config, POLICIES[policy](), indices, TRAIN, base_seed, workers)
+            eps = run_episodes(env_config, policy, indices, TRAIN, base_seed, workers)
             _write_shard(shard_path(root, j), eps)
             bar.update(len(indices))
     return manifest

@@ -67,8 +67,9 @@ class ChainEnv(gym.Env):
     The table is unbounded, so positions are too.
 
     ## Rewards
-    0.0 on every step: the reward comes from a trained predictor, which the policy issue
-    adds. Everything a reward needs is in `info`.
+    0.0 on every step. The paper's reward comes from a trained predictor:
+    `masspush.policy.PushPolicyEnv` wraps this environment with it. Everything a reward
+    needs is in `info`.
 
     ## Starting state
     Per episode: masses ~ U(mass_range) per link; friction ~ U(0.5, 1); lengths ~
@@ -131,6 +132,20 @@ class ChainEnv(gym.Env):
         self.sim: ChainSim | None = None
         self._pushes_done = 0
         self._done = True
+
+    @classmethod
+    def from_config(cls, config: EnvConfig) -> ChainEnv:
+        """The environment an `EnvConfig` describes."""
+        physics = config.physics
+        return cls(
+            n_links=physics.n_links,
+            mass_range=physics.mass_range,
+            pushes=config.pushes,
+            obs_noise=config.obs_noise,
+            action_noise=config.action_noise,
+            pusher=config.pusher,
+            physics=physics,
+        )
 
     @property
     def physics(self) -> PhysicsConfig:

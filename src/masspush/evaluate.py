@@ -16,7 +16,7 @@ from masspush.config import EnvConfig
 from masspush.metrics import all_metrics, percentage_error
 from masspush.predictor import load_model
 from masspush.rollout import EVAL, POLICIES, run_episodes
-from masspush.settings import get_setting
+from masspush.settings import Setting, get_setting
 
 SHIPPED_DIR = Path(__file__).parent / "models"
 """Trained models shipped with the package: models/<setting>/<name>.pt."""
@@ -40,8 +40,24 @@ def resolve_model(model: str | os.PathLike, setting: str) -> Path:
     return path
 
 
+def model_policy(meta: dict[str, Any], model_file: str | os.PathLike):
+    """The pushing policy a predictor was trained with: random, or the learned policy whose
+    file its metadata names (relative to the model file), acting deterministically."""
+    name = meta.get("policy", "random")
+    if name == "learned":
+        from masspush.policy import LearnedPolicy
+
+        policy_file = Path(model_file).parent / meta["policy_file"]
+        if not policy_file.exists():
+            raise ValueError(f"{model_file} needs its policy file {policy_file}, which is missing")
+        return LearnedPolicy(policy_file, meta["policy_algo"], deterministic=True)
+    if name not in POLICIES:
+        raise ValueError(f"{model_file} names an unknown policy {name!r}")
+    return POLICIES[name]()
+
+
 def evaluate(
-    setting: str,
+    setting: str | Setting,
     model: str | os.PathLike,
     episodes: int = 800,
     seed: int = 0,
@@ -52,11 +68,11 @@ def evaluate(
     """Run `episodes` fresh episodes with the model's policy and report every metric."""
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
-    spec = get_setting(setting, settings_file)
+    spec = setting if isinstance(setting, Setting) else get_setting(setting, settings_file)
     path = resolve_model(model, spec.name)
     predictor, meta = load_model(path, setting=spec.name, pusher=pusher)
     pusher = pusher or meta.get("pusher", "stiff")
-    policy = POLICIES[meta.get("policy", "random")]()
+    policy = model_policy(meta, path)
     env_config = EnvConfig(physics=spec.physics(), pusher=pusher)
     run = run_episodes(env_config, policy, np.arange(episodes), EVAL, seed, workers)
     good = run.select(run.ok)

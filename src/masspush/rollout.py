@@ -46,9 +46,12 @@ class Policy(Protocol):
     def reset(self, seeds: np.ndarray) -> None:
         """Start len(seeds) episodes; `seeds` are the episodes' seeds (for any randomness)."""
 
-    def act(self, observations: np.ndarray, actions: np.ndarray, step: int) -> np.ndarray:
+    def act(
+        self, observations: np.ndarray, actions: np.ndarray, step: int, lengths: np.ndarray
+    ) -> np.ndarray:
         """(E, 2) actions in [-1, 1] for step `step`, given the observations q_0..q_step
-        (E, K + 1, D) and the actions a_0..a_{step-1} (E, K, 2) so far."""
+        (E, K + 1, D), the actions a_0..a_{step-1} (E, K, 2) so far and the link lengths
+        (E, n)."""
 
 
 class RandomPolicy:
@@ -59,7 +62,9 @@ class RandomPolicy:
     def reset(self, seeds: np.ndarray) -> None:
         self._rngs = [np.random.default_rng([int(s), 1]) for s in seeds]
 
-    def act(self, observations: np.ndarray, actions: np.ndarray, step: int) -> np.ndarray:
+    def act(
+        self, observations: np.ndarray, actions: np.ndarray, step: int, lengths: np.ndarray
+    ) -> np.ndarray:
         return np.array([rng.uniform(-1.0, 1.0, size=2) for rng in self._rngs], dtype=np.float32)
 
 
@@ -103,6 +108,15 @@ class Episodes:
 
     def __len__(self) -> int:
         return len(self.index)
+
+    @staticmethod
+    def history(observations: np.ndarray, actions: np.ndarray, lengths: np.ndarray) -> Episodes:
+        """Episodes holding only what the robot knows (for predicting mid-episode): the
+        other fields are zero."""
+        e, k = actions.shape[:2]
+        out = _empty(e, k, lengths.shape[1])
+        out.observations, out.actions, out.lengths = observations, actions, lengths
+        return out
 
     def select(self, mask: np.ndarray) -> Episodes:
         return Episodes(**{f.name: getattr(self, f.name)[mask] for f in fields(self)})
@@ -168,7 +182,7 @@ def run_batch(
         out.observations[e, 0] = noisy_observation(configs[e], rngs[e], obs_sigma)
     policy.reset(seeds)
     for t in range(k):
-        actions = np.asarray(policy.act(out.observations, out.actions, t), np.float32)
+        actions = np.asarray(policy.act(out.observations, out.actions, t, out.lengths), np.float32)
         executed = np.zeros((len(indices), 2))
         for e in np.flatnonzero(alive):
             executed[e] = executed_action(actions[e], rngs[e], env_config.action_noise)
@@ -196,15 +210,7 @@ def run_env(
 
     physics = env_config.physics
     k, n = env_config.pushes, physics.n_links
-    env = ChainEnv(
-        n_links=n,
-        mass_range=physics.mass_range,
-        pushes=k,
-        obs_noise=env_config.obs_noise,
-        action_noise=env_config.action_noise,
-        pusher=env_config.pusher,
-        physics=physics,
-    )
+    env = ChainEnv.from_config(env_config)
     out = _empty(len(indices), k, n)
     d = physics.obs_dim
     for e, i in enumerate(indices):
@@ -222,7 +228,9 @@ def run_env(
         policy.reset(np.array([seed], np.uint64))
         for t in range(k):
             # The policy sees this episode's history so far (views: filled in as we go).
-            action = policy.act(out.observations[e : e + 1], out.actions[e : e + 1], t)[0]
+            action = policy.act(
+                out.observations[e : e + 1], out.actions[e : e + 1], t, out.lengths[e : e + 1]
+            )[0]
             obs, _, terminated, _, info = env.step(np.asarray(action, np.float32))
             out.actions[e, t], out.executed[e, t] = action, info["push"]["action"]
             out.failure[e, t] = failure_code(info["failure"])

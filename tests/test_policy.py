@@ -1,0 +1,103 @@
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+from masspush.config import EnvConfig
+from masspush.policy import (
+    LearnedPolicy,
+    PolicyConfig,
+    PushPolicyEnv,
+    history_dim,
+    history_features,
+    paper_reward,
+    train_policy,
+)
+from masspush.predictor import TrainConfig, train_predictor
+from masspush.rollout import TRAIN, RandomPolicy, run_batch, run_env, run_episodes
+from masspush.settings import get_setting
+
+CONFIG = EnvConfig(physics=get_setting("2link-0.1-1").physics(), pusher="stiff")
+
+
+@pytest.fixture(scope="module")
+def predictor_file(tmp_path_factory):
+    episodes = run_batch(CONFIG, RandomPolicy(), np.arange(300), TRAIN, 0)
+    run = tmp_path_factory.mktemp("predictor")
+    config = TrainConfig(
+        optimizer="adam", steps=50, batch_size=32, lr=1e-3, eval_every=25, features="relative"
+    )
+    train_predictor(episodes, run, config, {"setting": {"name": "2link-0.1-1"}}, progress=False)
+    return run / "predictor.pt"
+
+
+def test_reward_is_the_papers_formula_as_coded():
+    # 10 (1 - 2 mean_i |m_i - m_hat_i|): mean |.| = (0.2 + 0.2) / 2 = 0.2 -> 10 * 0.6
+    assert paper_reward(np.array([0.3, 0.7]), np.array([0.5, 0.5])) == pytest.approx(6.0)
+    assert paper_reward(np.array([0.2, 0.3, 0.5]), np.array([0.2, 0.3, 0.5])) == 10.0
+    # mean |.| = (0.5 + 0.25 + 0.25) / 3 = 1/3 -> 10 (1 - 2/3)
+    got = paper_reward(np.array([[0.0, 0.5, 0.5]]), np.array([[0.5, 0.25, 0.25]]))
+    np.testing.assert_allclose(got, [10 / 3])
+
+
+def test_history_features_hide_the_future():
+    rng = np.random.default_rng(0)
+    obs = rng.normal(size=(4, 3, 4)).astype(np.float32)
+    actions = rng.uniform(-1, 1, (4, 2, 2)).astype(np.float32)
+    lengths = np.full((4, 2), 0.12, np.float32)
+    before = history_features(obs, actions, lengths, step=0)
+    assert before.shape == (4, history_dim(2, 2))
+    changed_future = obs.copy()
+    changed_future[:, 1:] += 1.0
+    np.testing.assert_array_equal(
+        before, history_features(changed_future, actions * 0.5, lengths, step=0)
+    )
+    np.testing.assert_array_equal(before[:, -2:], np.tile([1.0, 0.0], (4, 1)))  # push number
+    after = history_features(obs, actions, lengths, step=1)
+    assert not np.array_equal(before, after)
+
+
+def test_environment_rewards_the_frozen_predictors_estimate(predictor_file):
+    env = PushPolicyEnv(CONFIG, str(predictor_file))
+    check_env(env, skip_render_check=True)
+    obs, info = env.reset(seed=3)
+    assert obs.shape == env.observation_space.shape
+    done, rewards = False, []
+    while not done:
+        obs, reward, done, _, step_info = env.step(env.action_space.sample())
+        if step_info["failure"] is None:
+            assert reward == pytest.approx(
+                paper_reward(step_info["estimate"], info["mass_distribution"])
+            )
+        rewards.append(reward)
+    assert len(rewards) <= 2
+
+
+def test_a_trained_policy_pushes_the_same_way_for_the_same_seeds(predictor_file, tmp_path):
+    config = PolicyConfig(algo="mlp", n_envs=2, steps=64, n_steps=16)
+    path = train_policy(
+        CONFIG,
+        predictor_file,
+        tmp_path / "policy",
+        config,
+        progress=False,
+        meta={"setting": {"name": "2link-0.1-1"}},
+    )
+    assert (tmp_path / "policy" / "progress.csv").read_text().startswith("timesteps,")
+    assert not list((tmp_path / "policy").glob("checkpoint_*"))  # cleaned up when done
+    for deterministic in (True, False):
+        policy = LearnedPolicy(path, "mlp", deterministic)
+        a = run_episodes(CONFIG, policy, np.arange(12), TRAIN, 0)
+        b = run_episodes(CONFIG, policy, np.arange(12), TRAIN, 0)
+        np.testing.assert_array_equal(a.actions, b.actions)
+        assert np.all(np.abs(a.actions[a.ok]) <= 1.0)
+    # Both engines show the policy the same first rest pose, so it chooses the same first push.
+    batch = run_batch(CONFIG, LearnedPolicy(path, "mlp"), np.arange(6), TRAIN, 0)
+    single = run_env(CONFIG, LearnedPolicy(path, "mlp"), np.arange(6), TRAIN, 0)
+    np.testing.assert_allclose(batch.actions[:, 0], single.actions[:, 0], atol=1e-6)
+
+
+def test_bad_policy_configs_are_refused():
+    with pytest.raises(ValueError, match="algo"):
+        PolicyConfig(algo="sac")
+    with pytest.raises(ValueError, match="n_steps"):
+        PolicyConfig(n_steps=1)
