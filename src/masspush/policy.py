@@ -171,9 +171,17 @@ class PolicyConfig:
 
 
 def make_vec_env(env_config: EnvConfig, predictor_path: str | os.PathLike, n_envs: int, seed: int):
-    """`n_envs` PushPolicyEnvs in worker processes (one simulation per process)."""
+    """`n_envs` pushing episodes: for the stiff pusher in lockstep on the multi-threaded
+    batch path (`masspush.vec_env`), for an arm as PushPolicyEnvs in worker processes."""
     from stable_baselines3.common.env_util import make_vec_env as sb3_make_vec_env
-    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor
+
+    if env_config.pusher == "stiff":
+        from masspush.vec_env import BatchPushVecEnv
+
+        vec = BatchPushVecEnv(env_config, str(predictor_path), n_envs, seed)
+        vec.seed(seed)
+        return VecMonitor(vec)
 
     vec_cls = SubprocVecEnv if n_envs > 1 else DummyVecEnv
     return sb3_make_vec_env(

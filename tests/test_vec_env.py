@@ -1,0 +1,63 @@
+import numpy as np
+import pytest
+
+from masspush.config import EnvConfig
+from masspush.policy import history_dim, paper_reward
+from masspush.predictor import TrainConfig, train_predictor
+from masspush.rollout import TRAIN, RandomPolicy, run_batch
+from masspush.settings import get_setting
+from masspush.vec_env import BatchPushVecEnv
+
+CONFIG = EnvConfig(physics=get_setting("2link-0.1-1").physics(), pusher="stiff")
+
+
+@pytest.fixture(scope="module")
+def predictor_file(tmp_path_factory):
+    episodes = run_batch(CONFIG, RandomPolicy(), np.arange(200), TRAIN, 0)
+    run = tmp_path_factory.mktemp("predictor")
+    config = TrainConfig(
+        optimizer="adam", steps=20, batch_size=32, eval_every=10, features="relative"
+    )
+    train_predictor(episodes, run, config, {"setting": {"name": "2link-0.1-1"}}, progress=False)
+    return run / "predictor.pt"
+
+
+def play(vec, rng):
+    obs = [vec.reset()]
+    rewards, dones, infos = [], [], []
+    for _ in range(CONFIG.pushes):
+        o, r, d, i = vec.step(rng.uniform(-1, 1, (vec.num_envs, 2)).astype(np.float32))
+        obs.append(o), rewards.append(r), dones.append(d), infos.append(i)
+    return obs, rewards, dones, infos
+
+
+def test_lockstep_episodes_reward_the_predictors_estimates(predictor_file):
+    vec = BatchPushVecEnv(CONFIG, str(predictor_file), n_envs=8, seed=0)
+    obs, rewards, dones, infos = play(vec, np.random.default_rng(0))
+    assert obs[0].shape == (8, history_dim(2, 2))
+    assert not dones[0].any() and dones[1].all()  # K = 2 pushes, together
+    assert "terminal_observation" in infos[1][0]
+    for t in range(2):
+        for e in range(8):
+            info = infos[t][e]
+            if info["failure"] is None and "estimate" in info:
+                assert rewards[t][e] == pytest.approx(
+                    paper_reward(info["estimate"], info["mass_distribution"]), rel=1e-5
+                )
+    # A fresh episode starts after the last push: the push counter is back at 0.
+    np.testing.assert_array_equal(obs[2][:, -2:], np.tile([1.0, 0.0], (8, 1)))
+
+
+def test_the_same_seed_gives_the_same_episodes(predictor_file):
+    runs = []
+    for _ in range(2):
+        vec = BatchPushVecEnv(CONFIG, str(predictor_file), n_envs=4, seed=0)
+        vec.seed(7)
+        runs.append(play(vec, np.random.default_rng(1)))
+    for a, b in zip(runs[0][1], runs[1][1], strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_arms_are_refused(predictor_file):
+    with pytest.raises(ValueError, match="stiff pusher only"):
+        BatchPushVecEnv(EnvConfig(physics=CONFIG.physics, pusher="kuka"), str(predictor_file), 2)
