@@ -1,4 +1,4 @@
-from masspush.bench import bench_data, bench_train
+from masspush.bench import bench_data, bench_ppo, bench_train
 
 
 def test_collection_and_training_benchmarks_report_rates():
@@ -7,3 +7,9 @@ def test_collection_and_training_benchmarks_report_rates():
     rows = bench_train(episodes=60, steps=20)
     assert [r["batch_size"] for r in rows] == [16, 256]
     assert all(r["samples_per_s"] > 0 for r in rows)
+
+
+def test_ppo_benchmark_reports_a_rate_per_learner():
+    rows = bench_ppo("2link-0.1-1", "stiff", ("mlp",), steps=16, envs=(4,), n_steps=8)
+    assert len(rows) == 1 and rows[0]["pushes_per_s"] > 0
+    assert rows[0]["pushes"] == 32  # PPO completes its rollout of 4 x 8

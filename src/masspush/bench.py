@@ -330,3 +330,47 @@ def bench_train(
             }
         )
     return rows
+
+
+def bench_ppo(
+    setting: str = "2link-1-10",
+    pusher: str | None = None,
+    algos: tuple[str, ...] = ("mlp", "recurrent"),
+    steps: int = 8192,
+    envs: tuple[int, ...] = (16,),
+    n_steps: int | None = None,
+) -> list[dict]:
+    """PPO training speed (pushes per second, simulation and updates together) for each
+    learner and number of environments, against the setting's shipped RP predictor."""
+    import tempfile
+
+    from masspush.config import EnvConfig
+    from masspush.evaluate import resolve_model
+    from masspush.policy import PolicyConfig, train_policy
+    from masspush.settings import get_setting
+
+    spec = get_setting(setting)
+    pusher = pusher or spec.pusher
+    config = EnvConfig(physics=spec.physics(), pusher=pusher)
+    predictor = resolve_model("rp", spec.name)
+    rows = []
+    for algo in algos:
+        for n_envs in envs:
+            policy = PolicyConfig(algo=algo, n_envs=n_envs, steps=steps, n_steps=n_steps)
+            with tempfile.TemporaryDirectory() as out:
+                t0 = time.perf_counter()
+                train_policy(config, predictor, out, policy, progress=False)
+                elapsed = time.perf_counter() - t0
+            done = max(steps, policy.rollout_steps * n_envs)  # PPO finishes its rollout
+            rows.append(
+                {
+                    "setting": setting,
+                    "pusher": pusher,
+                    "algo": algo,
+                    "envs": n_envs,
+                    "pushes": done,
+                    "seconds": round(elapsed, 1),
+                    "pushes_per_s": round(done / elapsed, 1),
+                }
+            )
+    return rows

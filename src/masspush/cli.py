@@ -149,6 +149,21 @@ def cmd_bench_train(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench_ppo(args: argparse.Namespace) -> int:
+    from masspush.bench import bench_ppo
+
+    rows = bench_ppo(
+        args.setting,
+        args.pusher,
+        tuple(args.algos.split(",")),
+        args.steps,
+        tuple(int(e) for e in args.envs.split(",")),
+    )
+    for row in rows:
+        print(json.dumps(row))
+    return 0
+
+
 def cmd_bench_motion(args: argparse.Namespace) -> int:
     """How far the chains of a dataset moved per push (is there anything to observe?)."""
     from masspush.dataset import load_dataset
@@ -573,6 +588,13 @@ def build_parser() -> argparse.ArgumentParser:
     bt.add_argument("--episodes", type=int, default=4000)
     bt.add_argument("--steps", type=int, default=2000)
     bt.set_defaults(func=cmd_bench_train)
+    bp = bench_sub.add_parser("ppo", help="PPO training speed, pushes per second")
+    bp.add_argument("--setting", default="2link-1-10")
+    bp.add_argument("--pusher", default=None, help="default: the setting's")
+    bp.add_argument("--algos", default="mlp,recurrent")
+    bp.add_argument("--steps", type=int, default=8192)
+    bp.add_argument("--envs", default="16", help="comma-separated numbers of environments")
+    bp.set_defaults(func=cmd_bench_ppo)
     bm = bench_sub.add_parser("motion", help="how far a dataset's chains moved per push")
     bm.add_argument("--data", required=True)
     bm.add_argument("--episodes", type=int, default=8000)
