@@ -17,3 +17,21 @@ def physics3() -> PhysicsConfig:
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(1234)
+
+
+@pytest.fixture(scope="session")
+def predictor_file(tmp_path_factory):
+    """A briefly trained 2link-0.1-1 predictor (stiff pusher), for policy tests."""
+    from masspush.config import EnvConfig
+    from masspush.predictor import TrainConfig, train_predictor
+    from masspush.rollout import TRAIN, RandomPolicy, run_batch
+    from masspush.settings import get_setting
+
+    config = EnvConfig(physics=get_setting("2link-0.1-1").physics(), pusher="stiff")
+    episodes = run_batch(config, RandomPolicy(), np.arange(300), TRAIN, 0)
+    run = tmp_path_factory.mktemp("predictor")
+    train = TrainConfig(
+        optimizer="adam", steps=50, batch_size=32, lr=1e-3, eval_every=25, features="relative"
+    )
+    train_predictor(episodes, run, train, {"setting": {"name": "2link-0.1-1"}}, progress=False)
+    return run / "predictor.pt"

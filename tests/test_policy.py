@@ -12,22 +12,10 @@ from masspush.policy import (
     paper_reward,
     train_policy,
 )
-from masspush.predictor import TrainConfig, train_predictor
-from masspush.rollout import TRAIN, RandomPolicy, run_batch, run_env, run_episodes
+from masspush.rollout import TRAIN, run_batch, run_env, run_episodes
 from masspush.settings import get_setting
 
 CONFIG = EnvConfig(physics=get_setting("2link-0.1-1").physics(), pusher="stiff")
-
-
-@pytest.fixture(scope="module")
-def predictor_file(tmp_path_factory):
-    episodes = run_batch(CONFIG, RandomPolicy(), np.arange(300), TRAIN, 0)
-    run = tmp_path_factory.mktemp("predictor")
-    config = TrainConfig(
-        optimizer="adam", steps=50, batch_size=32, lr=1e-3, eval_every=25, features="relative"
-    )
-    train_predictor(episodes, run, config, {"setting": {"name": "2link-0.1-1"}}, progress=False)
-    return run / "predictor.pt"
 
 
 def test_reward_is_the_papers_formula_as_coded():

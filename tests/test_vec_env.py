@@ -3,23 +3,10 @@ import pytest
 
 from masspush.config import EnvConfig
 from masspush.policy import history_dim, paper_reward
-from masspush.predictor import TrainConfig, train_predictor
-from masspush.rollout import TRAIN, RandomPolicy, run_batch
 from masspush.settings import get_setting
 from masspush.vec_env import BatchPushVecEnv
 
 CONFIG = EnvConfig(physics=get_setting("2link-0.1-1").physics(), pusher="stiff")
-
-
-@pytest.fixture(scope="module")
-def predictor_file(tmp_path_factory):
-    episodes = run_batch(CONFIG, RandomPolicy(), np.arange(200), TRAIN, 0)
-    run = tmp_path_factory.mktemp("predictor")
-    config = TrainConfig(
-        optimizer="adam", steps=20, batch_size=32, eval_every=10, features="relative"
-    )
-    train_predictor(episodes, run, config, {"setting": {"name": "2link-0.1-1"}}, progress=False)
-    return run / "predictor.pt"
 
 
 def play(vec, rng):
