@@ -13,19 +13,21 @@ def run_cli(*args: str) -> subprocess.CompletedProcess:
     )
 
 
-def test_demo_prints_each_push_and_rest_pose():
-    result = run_cli("demo", "--links", "3", "--seed", "4")
+def test_demo_prints_each_push_and_the_estimate_and_draws_them(tmp_path):
+    picture = tmp_path / "demo.png"
+    result = run_cli("demo", "--model", "rp+", "--seed", "4", "--out", str(picture))
     assert result.returncode == 0, result.stderr
     out = result.stdout
-    assert "mass distribution" in out
-    assert out.count("push ") >= 3 and "q3 =" in out
+    assert "mass distribution" in out and "random policy" in out
+    assert out.count("estimate ") == 2 and "q2 =" in out  # two pushes, two estimates
+    assert picture.stat().st_size > 10_000
 
 
 def test_bad_cli_input_is_a_clear_error(capsys):
-    assert main(["demo", "--links", "1"]) == 2
-    assert "n_links must be an integer >= 2" in capsys.readouterr().err
-    assert main(["demo", "--mass-range", "2", "1"]) == 2
-    assert "mass_range is empty" in capsys.readouterr().err
+    assert main(["demo", "--setting", "4link"]) == 2
+    assert "unknown setting" in capsys.readouterr().err
+    assert main(["demo", "--setting", "3link-1-10", "--model", "nothing.pt"]) == 2
+    assert "no model file" in capsys.readouterr().err
 
 
 @pytest.mark.slow
@@ -38,10 +40,13 @@ def test_bench_sim_reports_all_paths():
     assert 0 <= report["failure_rate"] < 0.2
 
 
-def test_demo_is_reproducible_from_its_seed():
-    first, second = run_cli("demo", "--seed", "5"), run_cli("demo", "--seed", "5")
+def test_demo_is_reproducible_from_its_seed(tmp_path):
+    def demo(seed: str) -> str:
+        return run_cli("demo", "--model", "rp+", "--seed", seed, "--out", str(tmp_path / "d.png"))
+
+    first, second = demo("5"), demo("5")
     assert first.returncode == 0 and first.stdout == second.stdout
-    assert run_cli("demo", "--seed", "6").stdout != first.stdout
+    assert demo("6").stdout != first.stdout
 
 
 def test_reproduce_table_only_writes_the_table_beside_the_papers(tmp_path, monkeypatch, capsys):

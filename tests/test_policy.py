@@ -1,3 +1,5 @@
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
@@ -89,3 +91,17 @@ def test_bad_policy_configs_are_refused():
         PolicyConfig(algo="sac")
     with pytest.raises(ValueError, match="n_steps"):
         PolicyConfig(n_steps=1)
+    with pytest.raises(ValueError, match="initial_action"):
+        PolicyConfig(initial_action=(1.5, 0.0))
+    with pytest.raises(ValueError, match="learning_rate"):
+        PolicyConfig(learning_rate=0.0)
+
+
+@pytest.mark.parametrize("algo", ["mlp", "recurrent"])
+def test_an_untrained_policy_starts_at_the_initial_action(algo, predictor_file, tmp_path):
+    """The zero action is a saddle (docs/training.md): the policy must start elsewhere."""
+    config = PolicyConfig(algo=algo, n_envs=2, steps=2, n_steps=2, initial_action=(0.6, -0.4))
+    config = replace(config, learning_rate=1e-12)  # one update that changes nothing
+    path = train_policy(CONFIG, predictor_file, tmp_path / "p", config, progress=False)
+    actions = run_episodes(CONFIG, LearnedPolicy(path, algo), np.arange(4), TRAIN, 0).actions
+    np.testing.assert_allclose(actions[:, 0], np.tile([0.6, -0.4], (4, 1)), atol=0.05)

@@ -10,93 +10,103 @@ from collections.abc import Sequence
 import numpy as np
 
 
-def _format(values: np.ndarray, digits: int = 3) -> str:
-    return "[" + ", ".join(f"{v:+.{digits}f}" for v in np.asarray(values, dtype=float)) + "]"
-
-
-def _shipped_estimator(n_links: int, mass_range, pusher: str):
-    """The shipped RP+ predictor for this chain and pusher, if there is one: (model, name)."""
-    from masspush.evaluate import resolve_model
-    from masspush.predictor import load_model
-    from masspush.settings import SETTINGS
-
-    for setting in SETTINGS.values():
-        if setting.n_links == n_links and setting.mass_range == tuple(mass_range):
-            try:
-                model, _ = load_model(resolve_model("rp+", setting.name), setting.name, pusher)
-            except ValueError:
-                return None
-            return model, f"rp+ ({setting.name}, {pusher})"
-    return None
-
-
 def cmd_demo(args: argparse.Namespace) -> int:
-    """Random pushes on a random chain: each push, the rest pose, and (where a trained
-    predictor ships for this setting) the estimate of the mass distribution after it."""
-    from masspush.env import ChainEnv
-    from masspush.rollout import Episodes
-    from masspush.settings import PAPER_PUSHER
+    """A shipped policy pushes a random chain; the shipped predictor estimates its masses."""
+    from masspush.demo import DEMO_SETTING, draw_demo, run_demo
 
-    pusher = args.pusher or PAPER_PUSHER
-    env = ChainEnv(
-        n_links=args.links, mass_range=tuple(args.mass_range), pushes=args.pushes, pusher=pusher
-    )
-    obs, info = env.reset(seed=args.seed)
-    env.action_space.seed(args.seed)  # the whole demo is reproducible from its seed
-    n, k_max = args.links, env.config.pushes
-    estimator = _shipped_estimator(n, args.mass_range, pusher)
-    d = env.physics.obs_dim
-    history = np.full((1, k_max + 1, d), np.nan, np.float32)
-    actions = np.full((1, k_max, 2), np.nan, np.float32)
-    history[0, 0] = obs[:d]
-    truth = info["mass_distribution"]
-    print(f"A {n}-link chain on a table (seed {args.seed}), pushed by the {pusher} pusher;")
-    print("the robot may only push it and look at where it comes to rest.")
-    print(f"  true masses        {_format(info['masses'])} kg")
-    print(f"  mass distribution  {_format(truth)}   <- what is to be estimated")
-    print(f"  table friction     {info['friction']:.3f}")
-    print(f"  link lengths       {_format(info['lengths'])} m")
-    print(f"  rest pose q0       {_format(obs[:d])}  (x, y, yaw, joint angles; noisy)")
-    terminated = False
-    k = 0
-    while not terminated:
-        action = env.action_space.sample()
-        obs, _, terminated, _, info = env.step(action)
-        actions[0, k], history[0, k + 1] = action, obs[:d]
-        k += 1
-        p = info["push"]
-        side = "from the right" if p["side"] > 0 else "from the left"
-        print(
-            f"push {k}: a={_format(action, 2)} -> link {p['link']} {side}, "
-            f"{p['offset'] * 100:+.1f} cm from its centre, at {p['speed']:.2f} m/s"
+    episode = run_demo(args.setting or DEMO_SETTING, args.model, args.seed)
+    print(f"wrote {draw_demo(episode, args.out)}  (rest poses, pushes and estimates)")
+    if args.video:
+        from masspush.render import render_episode
+
+        result = render_episode(
+            episode.setting.name,
+            episode.pusher,
+            args.video,
+            seed=args.seed,
+            actions=np.asarray(episode.actions),
         )
-        if info["failure"]:
-            print(f"  push failed: {info['failure']}")
-            break
-        print(f"  at rest after {info['settle_time']:.2f} s: q{k} = {_format(obs[:d])}")
-        if estimator is not None:
-            so_far = Episodes(
-                index=np.zeros(1, np.int64),
-                seed=np.zeros(1, np.uint64),
-                observations=history[:, : k + 1],
-                configs=history[:, : k + 1],
-                actions=actions[:, :k],
-                executed=actions[:, :k],
-                failure=np.zeros((1, k), np.int8),
-                masses=info["masses"][None].astype(np.float32),
-                friction=np.array([info["friction"]], np.float32),
-                lengths=info["lengths"][None].astype(np.float32),
-            )
-            estimate = estimator[0].predict(so_far)[0, -1]
-            error = np.abs(estimate - truth).mean()
-            print(f"  estimate           {_format(estimate)}   (mean absolute error {error:.3f})")
-    if estimator is None:
-        print("No trained predictor ships for this setting and pusher yet.")
+        print(f"wrote {result.video} ({result.frames} frames, replaying the same episode)")
+    return 0
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    """Estimation episodes through a robot backend, the estimate printed after each push."""
+    from masspush.evaluate import model_policy, resolve_model
+    from masspush.predictor import load_model
+    from masspush.recording import Recording, write_recording
+    from masspush.robot import RecordedPolicy, fmt, make_robot, print_push, run_estimation
+    from masspush.settings import get_setting
+
+    setting = get_setting(args.setting, args.settings_file)
+    path = resolve_model(args.model, setting.name)
+    predictor, meta = load_model(path, setting.name)
+    robot = make_robot(args.robot, setting, args.episodes_file, args.seed)
+    if robot.n_links != setting.n_links:
+        raise ValueError(
+            f"the robot's chain has {robot.n_links} links, setting {setting.name!r} has "
+            f"{setting.n_links}"
+        )
+    if args.robot == "replay":
+        policy = RecordedPolicy(robot)
+        count = len(robot.recording.episodes) if args.count is None else args.count
+        print(f"Replaying {count} recorded episode(s) with their recorded pushes.")
     else:
-        print(
-            f"Estimates from the shipped {estimator[1]} predictor (random pushes, as it was "
-            "trained); the learned pushing policy comes with a later version."
+        policy, count = model_policy(meta, path), args.count or 1
+        print(f"Pushes chosen by the {policy.name} policy of model {args.model!r}.")
+    pushes = setting.physics().n_links if args.pushes is None else args.pushes
+    recorded = []
+    try:
+        for i in range(count):
+            print(f"episode {i + 1}:")
+            episode = run_estimation(
+                robot, predictor, policy, pushes, print_push, seed=args.seed + i
+            )
+            truth = getattr(robot, "truth", {})
+            if "mass_distribution" in truth:
+                print(f"  truth    {fmt(truth['mass_distribution'])}")
+            good = [r.config for r in episode.reports if r.config is not None]
+            recorded.append(
+                {
+                    "id": f"{args.robot}-{i + 1:03d}",
+                    "lengths": episode.start.lengths,
+                    "observations": [episode.start.config, *good],
+                    "actions": episode.actions[: len(good)],
+                    "masses": truth.get("masses"),
+                }
+            )
+    finally:
+        robot.close()
+    if args.record:
+        usable = [e for e in recorded if len(e["actions"])]
+        out = write_recording(
+            args.record,
+            Recording(
+                n_links=setting.n_links,
+                robot=f"masspush simulation ({args.robot})",
+                setting=setting.name,
+                episodes=usable,
+            ),
         )
+        print(f"recorded {len(usable)} episode(s) to {out}")
+    return 0
+
+
+def cmd_check_episodes(args: argparse.Namespace) -> int:
+    """Validate a recording: every problem with its line and field."""
+    from masspush.recording import check_recording, read_recording
+
+    problems = check_recording(args.file)
+    for problem in problems:
+        print(f"{args.file}: {problem}")
+    if problems:
+        return 1
+    recording = read_recording(args.file)
+    labels = sorted({label for label in recording.labels if label is not None})
+    print(
+        f"{args.file}: good: {len(recording.episodes)} episode(s) of a {recording.n_links}-link "
+        f"chain" + (f", labels {labels}" if labels else "")
+    )
     return 0
 
 
@@ -432,7 +442,7 @@ def _recipe_args(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--meta-iterations", type=int, default=6)
     p.add_argument("--ppo-steps", type=int, default=75_000, help="per meta-iteration")
-    p.add_argument("--envs", type=int, default=16, help="parallel environments")
+    p.add_argument("--envs", type=int, default=64, help="parallel environments (default 64)")
     p.add_argument(
         "--first-episodes",
         type=int,
@@ -465,10 +475,14 @@ def build_parser() -> argparse.ArgumentParser:
         )
         p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
 
-    demo = sub.add_parser("demo", help="push a random chain and print what happens")
-    chain_args(demo)
-    demo.add_argument("--pushes", type=int, default=None, help="pushes (default: one per link)")
-    demo.add_argument("--pusher", default=None, help="stiff, kuka or ur10 (default: kuka)")
+    demo = sub.add_parser(
+        "demo", help="a trained policy pushes a random chain; the estimate after each push"
+    )
+    demo.add_argument("--setting", default=None, help="named setting (default 2link-1-10)")
+    demo.add_argument("--model", default="tp+", help="shipped name (rp, rp+, tp, tp+) or path")
+    demo.add_argument("--seed", type=int, default=0, help="the chain's random seed (default 0)")
+    demo.add_argument("--out", default="masspush-demo.png", help="picture to write (PNG)")
+    demo.add_argument("--video", default=None, help="also render the episode to this MP4/GIF")
     demo.set_defaults(func=cmd_demo)
 
     col = sub.add_parser("collect", help="collect rollout episodes into a dataset (resumable)")
@@ -547,6 +561,24 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--table-only", action="store_true", help="only write table and figures")
     _recipe_args(rep)
     rep.set_defaults(func=cmd_reproduce)
+
+    run = sub.add_parser(
+        "run", help="estimation episodes through a robot backend (simulated or replayed)"
+    )
+    run.add_argument("--robot", required=True, help="stiff, kuka, ur10 (simulated) or replay")
+    run.add_argument("--setting", required=True, help="named setting, e.g. 2link-0.1-1")
+    run.add_argument("--settings-file", default=None, help="TOML file with custom settings")
+    run.add_argument("--model", default="tp+", help="shipped name (rp, rp+, tp, tp+) or path")
+    run.add_argument("--episodes-file", default=None, help="replay: the recording to play")
+    run.add_argument("--count", type=int, default=None, help="episodes (replay: all)")
+    run.add_argument("--pushes", type=int, default=None, help="default: one per link")
+    run.add_argument("--seed", type=int, default=0, help="simulated chains' first seed")
+    run.add_argument("--record", default=None, help="write the session as a recording")
+    run.set_defaults(func=cmd_run)
+
+    chk = sub.add_parser("check-episodes", help="validate a recording (docs/real-robot.md)")
+    chk.add_argument("file")
+    chk.set_defaults(func=cmd_check_episodes)
 
     render = sub.add_parser("render", help="render an episode to a video (MP4 or GIF)")
     render.add_argument("--setting", default="2link-0.1-1", help="named setting")

@@ -19,6 +19,7 @@ import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
 from masspush.chain import link_poses
+from masspush.config import EnvConfig
 from masspush.env import ChainEnv
 from masspush.settings import get_setting
 
@@ -109,7 +110,8 @@ def render_episode(
         raise ValueError(f"frame size must be at least 16x16, got {width}x{height}")
     spec = get_setting(setting)
     out.parent.mkdir(parents=True, exist_ok=True)
-    env = ChainEnv(n_links=spec.n_links, mass_range=spec.mass_range, pusher=pusher)
+    # The setting's own physics, so that a replay of an episode (seed, actions) is that episode.
+    env = ChainEnv.from_config(EnvConfig(physics=spec.physics(), pusher=pusher))
     env.reset(seed=seed)
     rng = np.random.default_rng(seed)
     recorder = _Recorder(env, width, height, pusher)

@@ -45,6 +45,12 @@ def collect_rows(settings: Sequence[str], pushers: dict[str, str], root=".") -> 
         row["tp+"] = by_stage.get("predictor-final", {}).get("percentage_error")
         if row["constant_floor"] is None and by_stage:
             row["constant_floor"] = next(iter(by_stage.values()))["constant_floor"]
+        config = (state or {}).get("config", {})
+        row["recipe"] = (
+            f"{config['meta_iterations']} x {config['policy']['steps'] / 1000:g}k PPO"
+            if config
+            else None
+        )
         row["train_minutes"] = (
             round(sum(state["timings"].values()) / 60, 1) if state and row["tp+"] else None
         )
@@ -61,22 +67,23 @@ def _cell(value: float | None) -> str:
 def table_markdown(rows: list[dict]) -> str:
     lines = [
         "| setting | pusher | RP ours / paper | RP+ ours / paper | TP ours / paper "
-        "| TP+ ours / paper | constant floor | recipe wall clock |",
-        "|---|---|---|---|---|---|---|---|",
+        "| TP+ ours / paper | constant floor | recipe | recipe wall clock |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         cells = [f"**{_cell(r[n])}** / {r[f'paper_{n}']:.2f}" for n in COLUMNS]
         minutes = "" if r["train_minutes"] is None else f"{r['train_minutes']} min"
         floor = "" if r["constant_floor"] is None else f"{r['constant_floor']:.2f}"
         lines.append(
-            f"| {r['setting']} | {r['pusher']} | {' | '.join(cells)} | {floor} | {minutes} |"
+            f"| {r['setting']} | {r['pusher']} | {' | '.join(cells)} | {floor} "
+            f"| {r['recipe'] or ''} | {minutes} |"
         )
     return "\n".join(lines)
 
 
 def write_csv(rows: list[dict], path: Path) -> None:
     keys = ["setting", "pusher", *COLUMNS, *(f"paper_{n}" for n in COLUMNS)]
-    keys += ["constant_floor", "train_minutes"]
+    keys += ["constant_floor", "recipe", "train_minutes"]
     with path.open("w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=keys, extrasaction="ignore")
         writer.writeheader()

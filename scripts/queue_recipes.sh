@@ -1,0 +1,15 @@
+#!/usr/bin/env bash
+# The recipe runs of docs/results.md ("TP and TP+"), one after the other: run in parallel
+# they oversubscribe the two cores (a predictor trained 7x slower beside another run).
+# Each line is resumable: rerun this script after a kill.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+source .venv/bin/activate
+mkdir -p logs
+while pgrep -f "masspush train" > /dev/null; do sleep 20; done  # one run at a time
+run() { local name=$1; shift; masspush train "$@" --ship >> "logs/train-$name.log" 2>&1; }
+run 2link-1-10   --setting 2link-1-10
+run 2link-0.1-10 --setting 2link-0.1-10 --meta-iterations 3
+run 3link-1-10   --setting 3link-1-10   --meta-iterations 2 --iteration-episodes 8000 --final-episodes 16000
+run 3link-0.1-10 --setting 3link-0.1-10 --meta-iterations 2 --iteration-episodes 8000 --final-episodes 16000
+run 2link-0.1-1  --setting 2link-0.1-1  --meta-iterations 2 --ppo-steps 20000 --envs 8 --iteration-episodes 4000 --final-episodes 8000

@@ -1,0 +1,114 @@
+import json
+
+import numpy as np
+import pytest
+
+from masspush.recording import (
+    Recording,
+    RecordingError,
+    check_recording,
+    read_recording,
+    write_recording,
+)
+
+HEADER = {
+    "format": "masspush-episodes",
+    "version": 1,
+    "n_links": 2,
+    "units": {"length": "m", "angle": "rad", "mass": "kg"},
+    "robot": "ur10",
+}
+EPISODE = {
+    "id": "a-01",
+    "lengths": [0.1, 0.12],
+    "observations": [[0.0, 0.0, 0.1, 0.2], [0.05, 0.01, 0.3, -0.1], [0.07, 0.02, 0.2, 0.0]],
+    "actions": [[0.5, -0.5], [1.0, 0.5]],
+    "label": "even",
+    "masses": [0.16, 0.16],
+}
+
+
+def write_lines(tmp_path, *objects) -> str:
+    path = tmp_path / "rec.jsonl"
+    path.write_text("\n".join(o if isinstance(o, str) else json.dumps(o) for o in objects) + "\n")
+    return str(path)
+
+
+def test_a_recording_round_trips_and_becomes_predictor_input(tmp_path):
+    short = {**EPISODE, "id": "b", "observations": EPISODE["observations"][:2]}
+    short["actions"] = EPISODE["actions"][:1]
+    del short["label"], short["masses"]
+    recording = Recording(n_links=2, robot="ur10", setting="2link-0.1-1", episodes=[EPISODE, short])
+    path = write_recording(tmp_path / "r.jsonl", recording)
+    back = read_recording(path)
+    assert back.episodes == recording.episodes and back.setting == "2link-0.1-1"
+    assert back.labels == ["even", None]
+    episodes = back.to_episodes()
+    assert episodes.observations.shape == (2, 3, 4)
+    np.testing.assert_allclose(episodes.observations[0], EPISODE["observations"])
+    assert np.isnan(episodes.observations[1, 2]).all()  # the shorter episode is padded
+    np.testing.assert_allclose(episodes.masses[0], [0.16, 0.16])
+
+
+@pytest.mark.parametrize(
+    ("change", "line", "field", "message"),
+    [
+        ({"format": "csv"}, 1, "format", "must be 'masspush-episodes'"),
+        ({"version": 2}, 1, "version", "reads version 1"),
+        ({"units": {"length": "mm"}}, 1, "units", "must be"),
+        ({"n_links": 1}, 1, "n_links", "integer >= 2"),
+        ({"colour": "red"}, 1, "colour", "unknown header field"),
+    ],
+)
+def test_header_problems_name_line_and_field(tmp_path, change, line, field, message):
+    problems = check_recording(write_lines(tmp_path, {**HEADER, **change}, EPISODE))
+    assert any(p.line == line and p.field == field and message in p.message for p in problems)
+
+
+@pytest.mark.parametrize(
+    ("change", "field", "message"),
+    [
+        ({"id": ""}, "id", "non-empty string"),
+        ({"lengths": [0.1]}, "lengths", "must be a 2 array"),
+        ({"lengths": [0.1, -0.1]}, "lengths", "must be > 0"),
+        ({"observations": [[0, 0, 0]] * 3}, "observations", "k x 4"),
+        ({"observations": EPISODE["observations"][:2]}, "observations", "one rest pose more"),
+        ({"actions": [[0.5, -0.5], [1.5, 0.5]]}, "actions[1][0]", "outside the action box"),
+        ({"actions": [[0.5, "x"], [1.0, 0.5]]}, "actions", "array of numbers"),
+        ({"masses": [0.1, 0.0]}, "masses", "> 0 (kg)"),
+        ({"label": 3}, "label", "must be a string"),
+        ({"speed": 3}, "speed", "unknown episode field"),
+    ],
+)
+def test_episode_problems_name_line_and_field(tmp_path, change, field, message):
+    path = write_lines(tmp_path, HEADER, EPISODE, {**EPISODE, "id": "x", **change})
+    problems = check_recording(path)
+    assert [(p.line, p.field) for p in problems if message in p.message] == [(3, field)]
+
+
+def test_structural_problems_are_reported_with_their_lines(tmp_path):
+    assert "empty" in str(check_recording(write_lines(tmp_path, ""))[0])
+    problems = check_recording(write_lines(tmp_path, HEADER, EPISODE, "{not json", EPISODE))
+    text = [str(p) for p in problems]
+    assert any(t.startswith("line 3: not valid JSON") for t in text)
+    assert any(t.startswith("line 4, field 'id'") and "repeats line 2" in t for t in text)
+    missing = {k: v for k, v in EPISODE.items() if k != "actions"}
+    problems = check_recording(write_lines(tmp_path, HEADER, missing))
+    assert [str(p) for p in problems] == ["line 2, field 'actions': missing (required)"]
+    with pytest.raises(RecordingError, match="1 problem"):
+        read_recording(write_lines(tmp_path, HEADER, missing))
+    assert "no file" in str(check_recording(tmp_path / "nothing.jsonl")[0])
+
+
+def test_writing_refuses_what_could_not_be_read_back(tmp_path):
+    bad = {**EPISODE, "actions": [[2.0, 0.0], [0.0, 0.0]]}
+    with pytest.raises(RecordingError, match="outside the action box"):
+        write_recording(tmp_path / "r.jsonl", Recording(n_links=2, episodes=[bad]))
+    assert not (tmp_path / "r.jsonl").exists()
+
+
+def test_the_example_recording_is_valid():
+    from pathlib import Path
+
+    example = Path(__file__).parents[1] / "docs" / "examples" / "recording.jsonl"
+    assert check_recording(example) == []
