@@ -13,3 +13,4 @@ run 2link-0.1-10 --setting 2link-0.1-10 --meta-iterations 3
 run 3link-1-10   --setting 3link-1-10   --meta-iterations 2 --iteration-episodes 8000 --final-episodes 16000
 run 3link-0.1-10 --setting 3link-0.1-10 --meta-iterations 2 --iteration-episodes 8000 --final-episodes 16000
 run 2link-0.1-1  --setting 2link-0.1-1  --meta-iterations 2 --ppo-steps 20000 --envs 8 --iteration-episodes 4000 --final-episodes 8000
+run 3link-0.1-1  --setting 3link-0.1-1  --meta-iterations 1 --ppo-steps 10000 --envs 8 --iteration-episodes 2000 --final-episodes 4000

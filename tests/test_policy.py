@@ -12,6 +12,7 @@ from masspush.policy import (
     history_dim,
     history_features,
     paper_reward,
+    strip_policy,
     train_policy,
 )
 from masspush.rollout import TRAIN, run_batch, run_env, run_episodes
@@ -84,6 +85,12 @@ def test_a_trained_policy_pushes_the_same_way_for_the_same_seeds(predictor_file,
     batch = run_batch(CONFIG, LearnedPolicy(path, "mlp"), np.arange(6), TRAIN, 0)
     single = run_env(CONFIG, LearnedPolicy(path, "mlp"), np.arange(6), TRAIN, 0)
     np.testing.assert_allclose(batch.actions[:, 0], single.actions[:, 0], atol=1e-6)
+    # The shipped copy drops the optimizer's moments and acts exactly the same.
+    shipped = strip_policy(path, tmp_path / "shipped.zip")
+    assert shipped.stat().st_size < 0.6 * path.stat().st_size
+    a = run_episodes(CONFIG, LearnedPolicy(path, "mlp"), np.arange(6), TRAIN, 0)
+    b = run_episodes(CONFIG, LearnedPolicy(shipped, "mlp"), np.arange(6), TRAIN, 0)
+    np.testing.assert_array_equal(a.actions, b.actions)
 
 
 def test_bad_policy_configs_are_refused():

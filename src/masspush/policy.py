@@ -257,6 +257,26 @@ def _start_at(model, action: tuple[float, float]):
     return model
 
 
+def strip_policy(source: str | os.PathLike, target: str | os.PathLike) -> Path:
+    """A copy of a saved policy without the optimizer's moments (two thirds of the file):
+    what acting needs, and enough to go on training (Adam then starts afresh)."""
+    import io
+    import zipfile
+
+    import torch
+
+    with zipfile.ZipFile(source) as src, zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED) as dst:
+        for item in src.infolist():
+            data = src.read(item)
+            if item.filename == "policy.optimizer.pth":
+                state = torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
+                buffer = io.BytesIO()
+                torch.save({**state, "state": {}}, buffer)
+                data = buffer.getvalue()
+            dst.writestr(item, data)
+    return Path(target)
+
+
 def load_sb3(path: str | os.PathLike, algo: str, env=None):
     if algo == "recurrent":
         from sb3_contrib import RecurrentPPO

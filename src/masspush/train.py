@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
@@ -28,7 +27,7 @@ from typing import Any
 from masspush.config import EnvConfig
 from masspush.dataset import code_version, collect, load_dataset
 from masspush.evaluate import evaluate
-from masspush.policy import LearnedPolicy, PolicyConfig, train_policy
+from masspush.policy import LearnedPolicy, PolicyConfig, strip_policy, train_policy
 from masspush.predictor import FAST, TrainConfig, load_model, save_model, train_predictor
 from masspush.settings import Setting
 
@@ -259,7 +258,7 @@ def export_model(predictor: Path, target: Path) -> list[Path]:
     written = []
     if "policy_file" in meta:
         policy_target = target.with_name(f"{target.stem}.policy.zip")
-        shutil.copyfile(predictor.parent / meta["policy_file"], policy_target)
+        strip_policy(predictor.parent / meta["policy_file"], policy_target)
         meta = {**meta, "policy_file": policy_target.name}
         written.append(policy_target)
     save_model(target, model, meta)
