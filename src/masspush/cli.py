@@ -34,14 +34,16 @@ def cmd_run(args: argparse.Namespace) -> int:
     """Estimation episodes through a robot backend, the estimate printed after each push."""
     from masspush.evaluate import model_policy, resolve_model
     from masspush.predictor import load_model
-    from masspush.recording import Recording, write_recording
     from masspush.robot import RecordedPolicy, fmt, make_robot, print_push, run_estimation
     from masspush.settings import get_setting
 
     setting = get_setting(args.setting, args.settings_file)
     path = resolve_model(args.model, setting.name)
     predictor, meta = load_model(path, setting.name)
-    robot = make_robot(args.robot, setting, args.episodes_file, args.seed)
+    masses = None if args.masses is None else tuple(float(m) for m in args.masses.split(","))
+    if masses is not None and args.robot == "replay":
+        raise ValueError("--masses pins a simulated chain's masses; a replay has its own")
+    robot = make_robot(args.robot, setting, args.episodes_file, args.seed, masses)
     if robot.n_links != setting.n_links:
         raise ValueError(
             f"the robot's chain has {robot.n_links} links, setting {setting.name!r} has "
@@ -68,27 +70,117 @@ def cmd_run(args: argparse.Namespace) -> int:
             good = [r.config for r in episode.reports if r.config is not None]
             recorded.append(
                 {
-                    "id": f"{args.robot}-{i + 1:03d}",
+                    "id": "",
                     "lengths": episode.start.lengths,
                     "observations": [episode.start.config, *good],
                     "actions": episode.actions[: len(good)],
                     "masses": truth.get("masses"),
+                    "label": args.label,
                 }
             )
     finally:
         robot.close()
     if args.record:
-        usable = [e for e in recorded if len(e["actions"])]
-        out = write_recording(
-            args.record,
-            Recording(
-                n_links=setting.n_links,
-                robot=f"masspush simulation ({args.robot})",
-                setting=setting.name,
-                episodes=usable,
-            ),
+        _record(args.record, setting, f"masspush simulation ({args.robot})", recorded)
+    return 0
+
+
+def _record(path: str, setting, robot: str, episodes: list[dict]) -> None:
+    """Write episodes to a recording, appending when the file exists (one file can then
+    gather several runs, e.g. one per labelled class)."""
+    from pathlib import Path
+
+    from masspush.recording import Recording, read_recording, write_recording
+
+    usable = [e for e in episodes if len(e["actions"])]
+    if Path(path).exists():
+        recording = read_recording(path)
+        if recording.n_links != setting.n_links:
+            raise ValueError(f"{path} holds {recording.n_links}-link chains; not appending")
+    else:
+        recording = Recording(n_links=setting.n_links, robot=robot, setting=setting.name)
+    start = len(recording.episodes)
+    for i, e in enumerate(usable):
+        e["id"] = f"{e.get('label') or 'episode'}-{start + i + 1:04d}"
+    recording.episodes.extend(usable)
+    write_recording(path, recording)
+    print(f"recorded {len(usable)} episode(s) to {path} ({len(recording.episodes)} in all)")
+
+
+def cmd_finetune(args: argparse.Namespace) -> int:
+    """The paper's real-robot adaptation: a classifier on the predictor's features."""
+    from masspush.evaluate import resolve_model
+    from masspush.finetune import (
+        ClassifierConfig,
+        cross_validate,
+        finetune_predictor,
+        fit_classifier,
+        labelled,
+        predictor_features,
+        save_classifier,
+    )
+    from masspush.predictor import load_model
+    from masspush.recording import read_recording
+    from masspush.settings import get_setting
+
+    setting = get_setting(args.setting, args.settings_file)
+    path = resolve_model(args.model, setting.name)
+    predictor, meta = load_model(path, setting.name)
+    recording = read_recording(args.episodes)
+    if recording.n_links != setting.n_links:
+        raise ValueError(
+            f"{args.episodes} holds {recording.n_links}-link chains, setting {setting.name!r} "
+            f"has {setting.n_links} links"
         )
-        print(f"recorded {len(usable)} episode(s) to {out}")
+    episodes = recording.to_episodes()
+    if args.predictor_out:
+        out = finetune_predictor(path, episodes, args.predictor_out, recording=str(args.episodes))
+        print(f"fine-tuned predictor: {out}")
+        return 0
+    labels, classes = labelled(recording)
+    config = ClassifierConfig(folds=args.folds, features=args.features, seed=args.seed)
+    features = predictor_features(predictor, episodes, config.features)
+    scores = cross_validate(features, labels, len(classes), config)
+    print(
+        f"{len(labels)} episodes, {len(classes)} classes: {args.folds}-fold cross-validated "
+        f"accuracy {100 * scores['accuracy']:.1f} % (chance {100 * scores['chance']:.1f} %)"
+    )
+    print("confusion (rows: truth, columns: predicted), classes in this order:", classes)
+    for row in scores["confusion"]:
+        print("  " + " ".join(f"{v:4d}" for v in row))
+    model = fit_classifier(features, labels, len(classes), config)
+    info = {"setting": setting.name, "predictor": str(path), "predictor_meta": meta,
+            "features": config.features,
+            "episodes": str(args.episodes), "cross_validation": scores}  # fmt: skip
+    print(f"saved {save_classifier(args.out, model, classes, config, info)} (trained on all)")
+    return 0
+
+
+def cmd_classify(args: argparse.Namespace) -> int:
+    """Apply a saved classifier to recorded episodes."""
+    import torch
+
+    from masspush.finetune import load_classifier, predictor_features
+    from masspush.predictor import load_model
+    from masspush.recording import read_recording
+
+    model, classes, meta = load_classifier(args.classifier)
+    predictor, _ = load_model(meta["predictor"], meta["setting"])
+    recording = read_recording(args.episodes)
+    kind = meta.get("features", "estimate")
+    features = predictor_features(predictor, recording.to_episodes(), kind)
+    with torch.no_grad():
+        probs = torch.softmax(model(torch.as_tensor(features)), dim=1).numpy()
+    right = 0
+    for episode, p in zip(recording.episodes, probs, strict=True):
+        guess = classes[int(p.argmax())]
+        truth = episode.get("label")
+        right += guess == truth
+        mark = "" if truth is None else f"  (label {truth}{', right' if guess == truth else ''})"
+        print(f"{episode['id']}: {guess}  p={p.max():.2f}{mark}")
+    known = sum(e.get("label") is not None for e in recording.episodes)
+    if known:
+        print(f"accuracy on the {known} labelled episode(s): {100 * right / known:.1f} %")
     return 0
 
 
@@ -574,7 +666,37 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--pushes", type=int, default=None, help="default: one per link")
     run.add_argument("--seed", type=int, default=0, help="simulated chains' first seed")
     run.add_argument("--record", default=None, help="write the session as a recording")
+    run.add_argument("--masses", default=None, help="simulated: pin link masses, kg 'm1,m2'")
+    run.add_argument("--label", default=None, help="class label written into the recording")
     run.set_defaults(func=cmd_run)
+
+    ft = sub.add_parser(
+        "finetune", help="classifier on a predictor's features from labelled recordings"
+    )
+    ft.add_argument("--setting", required=True, help="the predictor's setting")
+    ft.add_argument("--settings-file", default=None, help="TOML file with custom settings")
+    ft.add_argument("--model", default="tp+", help="shipped name or path of the predictor")
+    ft.add_argument("--episodes", required=True, help="recording with labelled episodes")
+    ft.add_argument("--out", default="classifier.pt", help="where to save the classifier")
+    ft.add_argument("--folds", type=int, default=5, help="cross-validation folds")
+    ft.add_argument("--seed", type=int, default=0)
+    ft.add_argument(
+        "--features",
+        default="estimate",
+        choices=("estimate", "lstm"),
+        help="the classifier's input: the predictor's estimate, or its LSTM output (paper)",
+    )
+    ft.add_argument(
+        "--predictor-out",
+        default=None,
+        help="instead: fine-tune the predictor itself into this directory (needs masses)",
+    )
+    ft.set_defaults(func=cmd_finetune)
+
+    cl = sub.add_parser("classify", help="apply a saved classifier to recorded episodes")
+    cl.add_argument("--classifier", required=True)
+    cl.add_argument("--episodes", required=True, help="recording")
+    cl.set_defaults(func=cmd_classify)
 
     chk = sub.add_parser("check-episodes", help="validate a recording (docs/real-robot.md)")
     chk.add_argument("file")

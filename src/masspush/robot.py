@@ -64,7 +64,13 @@ class Robot(Protocol):
 class SimRobot:
     """The simulation as a robot: each `start` places a new random chain of the setting."""
 
-    def __init__(self, setting, pusher: str | None = None, seed: int = 0):
+    def __init__(
+        self,
+        setting,
+        pusher: str | None = None,
+        seed: int = 0,
+        masses: tuple[float, ...] | None = None,
+    ):
         from masspush.config import EnvConfig
         from masspush.env import ChainEnv
         from masspush.settings import get_setting
@@ -76,12 +82,14 @@ class SimRobot:
         )
         self.n_links = self.setting.n_links
         self.seed = seed
+        self.options = None if masses is None else {"masses": list(masses)}
+        """Pinned link masses (kg) for every chain, e.g. to record a labelled class."""
         self.truth: dict[str, Any] = {}
         """The current chain's hidden parameters (masses, friction), for scoring only."""
 
     def start(self) -> RestPose:
         while True:
-            obs, info = self.env.reset(seed=self.seed)
+            obs, info = self.env.reset(seed=self.seed, options=self.options)
             self.seed += 1
             if info["failure"] is None:
                 break
@@ -244,12 +252,18 @@ def print_push(k: int, action: np.ndarray, result: PushReport, estimate) -> None
     print(f"  estimate {fmt(estimate)}")
 
 
-def make_robot(backend: str, setting, recording: str | None = None, seed: int = 0) -> Robot:
+def make_robot(
+    backend: str,
+    setting,
+    recording: str | None = None,
+    seed: int = 0,
+    masses: tuple[float, ...] | None = None,
+) -> Robot:
     """A robot by backend name: stiff, kuka, ur10 (simulated) or replay (a recording)."""
     from masspush.pusher import PUSHERS
 
     if backend in PUSHERS:
-        return SimRobot(setting, backend, seed)
+        return SimRobot(setting, backend, seed, masses)
     if backend == "replay":
         if recording is None:
             raise ValueError("the replay backend needs --episodes FILE (a recording)")

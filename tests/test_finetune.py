@@ -1,0 +1,88 @@
+import numpy as np
+import pytest
+
+from masspush.cli import main
+from masspush.evaluate import resolve_model
+from masspush.finetune import (
+    ClassifierConfig,
+    cross_validate,
+    labelled,
+    load_classifier,
+    predictor_features,
+    stratified_folds,
+)
+from masspush.predictor import load_model
+from masspush.recording import Recording, read_recording, write_recording
+from masspush.robot import SimRobot, run_estimation
+from masspush.rollout import RandomPolicy
+
+SETTING = "2link-1-10"
+CLASSES = {"light-heavy": (2.0, 8.0), "even": (5.0, 5.0), "heavy-light": (8.0, 2.0)}
+
+
+@pytest.fixture(scope="module")
+def labelled_recording(tmp_path_factory):
+    """12 simulated episodes per class, each class on its own chains (as in a lab, where
+    the chain is placed anew for every episode)."""
+    predictor = load_model(resolve_model("rp+", SETTING), SETTING)[0]
+    episodes = []
+    for c, (label, masses) in enumerate(CLASSES.items()):
+        robot = SimRobot(SETTING, seed=1000 * (c + 1), masses=masses)
+        for i in range(12):
+            run = run_estimation(robot, predictor, RandomPolicy(), 2, seed=i)
+            if run.failure is not None:
+                continue
+            episodes.append(
+                {
+                    "id": f"{label}-{i}",
+                    "lengths": run.start.lengths,
+                    "observations": [run.start.config, *(r.config for r in run.reports)],
+                    "actions": run.actions,
+                    "label": label,
+                    "masses": list(masses),
+                }
+            )
+    path = tmp_path_factory.mktemp("rec") / "labelled.jsonl"
+    return write_recording(path, Recording(2, robot="sim", setting=SETTING, episodes=episodes))
+
+
+def test_a_classifier_on_predictor_features_beats_chance(labelled_recording):
+    recording = read_recording(labelled_recording)
+    predictor = load_model(resolve_model("rp+", SETTING), SETTING)[0]
+    labels, classes = labelled(recording)
+    assert predictor_features(predictor, recording.to_episodes(), "lstm").shape == (
+        len(labels),
+        64,
+    )
+    features = predictor_features(predictor, recording.to_episodes())
+    assert features.shape == (len(labels), 2)
+    scores = cross_validate(features, labels, len(classes), ClassifierConfig(folds=4))
+    assert scores["chance"] == pytest.approx(1 / 3, abs=0.05)
+    assert scores["accuracy"] > 0.7  # chance is a third
+    assert np.sum(scores["confusion"]) == len(labels)
+
+
+def test_finetune_and_classify_commands(labelled_recording, tmp_path, capsys):
+    out = tmp_path / "clf.pt"
+    args = ["--setting", SETTING, "--model", "rp+", "--episodes", str(labelled_recording)]
+    assert main(["finetune", *args, "--out", str(out), "--folds", "3"]) == 0
+    assert "cross-validated accuracy" in capsys.readouterr().out
+    assert main(["classify", "--classifier", str(out), "--episodes", str(labelled_recording)]) == 0
+    assert "accuracy on the" in capsys.readouterr().out
+    with pytest.raises(ValueError, match=r"not '2link-0\.1-1'"):
+        load_classifier(out, "2link-0.1-1")
+    # A predictor of another setting is refused, with a clear message on the command line.
+    assert main(["finetune", *args[:2], "--model", str(resolve_model("rp+", "3link-1-10")),
+                 "--episodes", str(labelled_recording)]) == 2  # fmt: skip
+    assert "trained for setting '3link-1-10'" in capsys.readouterr().err
+
+
+def test_folds_are_stratified_and_too_few_episodes_are_refused():
+    labels = np.array([0] * 6 + [1] * 9)
+    folds = stratified_folds(labels, 3, seed=0)
+    assert sorted(np.concatenate(folds).tolist()) == list(range(15))
+    assert all(np.sum(labels[f] == 0) == 2 and np.sum(labels[f] == 1) == 3 for f in folds)
+    with pytest.raises(ValueError, match="at least 5 episodes"):
+        cross_validate(np.zeros((6, 4)), np.array([0, 0, 0, 1, 1, 1]), 2, ClassifierConfig())
+    with pytest.raises(ValueError, match="folds"):
+        ClassifierConfig(folds=1)
