@@ -16,7 +16,7 @@ def test_the_shipped_tp_plus_policy_pushes_and_the_estimate_follows_each_push(tm
     assert len(episode.actions) == len(episode.estimates) == k and episode.failure is None
     for estimate in episode.estimates:
         assert estimate.shape == episode.truth.shape and estimate.sum() == pytest.approx(1, 1e-5)
-    assert sum("estimate" in line for line in lines) == k
+    assert sum(line.startswith("  estimate") for line in lines) == k
     picture = draw_demo(episode, tmp_path / "demo.png")
     assert picture.stat().st_size > 10_000
 
