@@ -42,17 +42,21 @@ class DatasetError(ValueError):
 
 
 def code_version() -> str:
-    """masspush's version, and the git commit when run from a checkout."""
+    """masspush's version, and the git commit when run from a checkout, marked ".dirty"
+    when the package's source differs from that commit (a result then cannot be traced to
+    a commit alone; shipped model files do not count)."""
     from masspush import __version__
 
+    here = Path(__file__).parent
+
+    def git(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run(["git", *args], capture_output=True, text=True, timeout=5, cwd=here)
+
     try:
-        commit = subprocess.run(
-            ["git", "rev-parse", "--short", "HEAD"],
-            capture_output=True,
-            text=True,
-            timeout=5,
-            cwd=Path(__file__).parent,
-        ).stdout.strip()
+        commit = git("rev-parse", "--short", "HEAD").stdout.strip()
+        changed = git("status", "--porcelain", "--untracked-files=no", "--", "*.py", "*.xml")
+        if commit and changed.stdout.strip():
+            commit += ".dirty"
     except (OSError, subprocess.SubprocessError):
         commit = ""
     return f"{__version__}+{commit}" if commit else __version__
