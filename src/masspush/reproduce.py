@@ -5,7 +5,8 @@ TP+ from `masspush train` (runs/<setting>-<pusher>-train/state.json). `reproduce
 whatever is missing (both resume) and then writes:
 - results/table1.md and results/table1.csv: RP, RP+, TP, TP+ per setting, ours and the paper's;
 - results/meta-iterations.png: error after each meta-iteration (2-link and 3-link panels);
-- results/ppo-error.png: the frozen predictor's error on the policy's episodes during PPO.
+- results/ppo-error.png: the frozen predictor's error on the policy's episodes during PPO;
+- results/recipe-times.md: wall-clock minutes per kind of stage of each finished run.
 """
 
 from __future__ import annotations
@@ -78,6 +79,43 @@ def table_markdown(rows: list[dict]) -> str:
             f"| {r['setting']} | {r['pusher']} | {' | '.join(cells)} | {floor} "
             f"| {r['recipe'] or ''} | {minutes} |"
         )
+    return "\n".join(lines)
+
+
+STAGE_GROUPS = {
+    "data-0": "random rollouts",
+    "predictor-0": "first predictor",
+    "policy": "PPO (all meta-iterations)",
+    "data": "policy rollouts",
+    "predictor": "fine-tuning",
+    "evaluate": "evaluations",
+    "data-final": "deterministic rollouts",
+    "predictor-final": "TP+ fine-tuning",
+}
+
+
+def stage_group(stage: str) -> str:
+    """The STAGE_GROUPS key of a recipe stage ("policy-3" -> "policy")."""
+    return stage if stage in STAGE_GROUPS else stage.split("-")[0]
+
+
+def timings_markdown(settings: Sequence[str], pushers: dict[str, str], root=".") -> str:
+    """Wall-clock minutes per kind of stage of each finished recipe run."""
+    lines = [
+        "| setting | recipe | " + " | ".join(STAGE_GROUPS.values()) + " | total |",
+        "|---|---|" + "---|" * (len(STAGE_GROUPS) + 1),
+    ]
+    for setting in settings:
+        state = _load(train_dir(setting, pushers[setting], root) / "state.json")
+        if not state or "evaluate-final" not in state["timings"]:
+            continue
+        minutes = dict.fromkeys(STAGE_GROUPS, 0.0)
+        for stage, seconds in state["timings"].items():
+            minutes[stage_group(stage)] += seconds / 60
+        config = state["config"]
+        recipe = f"{config['meta_iterations']} x {config['policy']['steps'] / 1000:g}k PPO"
+        cells = " | ".join(f"{m:.1f}" for m in minutes.values())
+        lines.append(f"| {setting} | {recipe} | {cells} | {sum(minutes.values()):.1f} |")
     return "\n".join(lines)
 
 
@@ -170,4 +208,6 @@ def write_outputs(settings, pushers, root=".", out_dir: str | Path = "results") 
     plot_meta_iterations(settings, pushers, root, paths[2])
     paths.append(out / "ppo-error.png")
     plot_ppo_error(settings, pushers, root, paths[3])
+    paths.append(out / "recipe-times.md")
+    paths[4].write_text(timings_markdown(settings, pushers, root) + "\n")
     return paths
