@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The recipe runs of docs/results.md ("TP and TP+"), one after the other: run in parallel
 # they oversubscribe the two cores (a predictor trained 7x slower beside another run).
-# Each line is resumable: rerun this script after a kill.
+# Each line is resumable: rerun this script after a kill. The reduced recipes are what
+# fitted in one session's budget; docs/results.md says which setting got what.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source .venv/bin/activate
@@ -11,6 +12,6 @@ run() { local name=$1; shift; masspush train "$@" --ship >> "logs/train-$name.lo
 run 2link-1-10   --setting 2link-1-10
 run 2link-0.1-10 --setting 2link-0.1-10 --meta-iterations 3
 run 3link-1-10   --setting 3link-1-10   --meta-iterations 2 --iteration-episodes 8000 --final-episodes 16000
-run 3link-0.1-10 --setting 3link-0.1-10 --meta-iterations 2 --iteration-episodes 8000 --final-episodes 16000
 run 2link-0.1-1  --setting 2link-0.1-1  --meta-iterations 2 --ppo-steps 20000 --envs 8 --iteration-episodes 4000 --final-episodes 8000
+run 3link-0.1-10 --setting 3link-0.1-10 --meta-iterations 1 --iteration-episodes 8000 --final-episodes 16000
 run 3link-0.1-1  --setting 3link-0.1-1  --meta-iterations 1 --ppo-steps 10000 --envs 8 --iteration-episodes 2000 --final-episodes 4000
