@@ -5,6 +5,7 @@ import sys
 import numpy as np
 import pytest
 
+import masspush.evaluate as evaluate_module
 from masspush.config import EnvConfig
 from masspush.evaluate import evaluate, resolve_model
 from masspush.predictor import MassPredictor, save_model, step_inputs
@@ -62,10 +63,14 @@ def test_evaluation_is_deterministic_and_seeded(model_file):
     assert a == b and a["mae"] != c["mae"]
 
 
-def test_unknown_models_are_clear_errors(model_file, tmp_path):
+def test_unknown_models_are_clear_errors(model_file, tmp_path, monkeypatch):
     with pytest.raises(ValueError, match="no model file"):
         resolve_model(tmp_path / "missing.pt", "2link-0.1-1")
-    with pytest.raises(ValueError, match="no shipped 'tp' model"):
+    shipped = tmp_path / "models"
+    (shipped / "2link-0.1-1").mkdir(parents=True)
+    (shipped / "2link-0.1-1" / "rp.pt").write_bytes(b"")
+    monkeypatch.setattr(evaluate_module, "SHIPPED_DIR", shipped)
+    with pytest.raises(ValueError, match=r"no shipped 'tp' model .*shipped for it: \['rp'\]"):
         resolve_model("tp", "2link-0.1-1")
     with pytest.raises(ValueError, match="trained for setting"):
         evaluate("3link-0.1-1", model_file, episodes=2)
