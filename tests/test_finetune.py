@@ -32,16 +32,7 @@ def labelled_recording(tmp_path_factory):
             run = run_estimation(robot, predictor, RandomPolicy(), 2, seed=i)
             if run.failure is not None:
                 continue
-            episodes.append(
-                {
-                    "id": f"{label}-{i}",
-                    "lengths": run.start.lengths,
-                    "observations": [run.start.config, *(r.config for r in run.reports)],
-                    "actions": run.actions,
-                    "label": label,
-                    "masses": list(masses),
-                }
-            )
+            episodes.append(run.recorded(id=f"{label}-{i}", label=label, masses=list(masses)))
     path = tmp_path_factory.mktemp("rec") / "labelled.jsonl"
     return write_recording(path, Recording(2, robot="sim", setting=SETTING, episodes=episodes))
 

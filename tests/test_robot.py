@@ -36,13 +36,7 @@ def test_a_replayed_session_gives_the_same_estimates(predictor, tmp_path):
     recording = Recording(
         n_links=2,
         episodes=[
-            {
-                "id": f"e{i}",
-                "lengths": r.start.lengths,
-                "observations": [r.start.config, *(p.config for p in r.reports)],
-                "actions": r.actions,
-                "masses": m,
-            }
+            r.recorded(id=f"e{i}", masses=m)
             for i, (r, m) in enumerate(zip(runs, masses, strict=True))
             if r.failure is None
         ],
@@ -60,12 +54,7 @@ def test_a_replayed_session_gives_the_same_estimates(predictor, tmp_path):
 def test_replay_refuses_a_push_that_was_not_recorded(predictor, tmp_path):
     runs, _ = simulated_session(predictor)
     r = next(r for r in runs if r.failure is None)
-    episode = {
-        "id": "only",
-        "lengths": r.start.lengths,
-        "observations": [r.start.config, *(p.config for p in r.reports)],
-        "actions": r.actions,
-    }
+    episode = r.recorded(id="only")
     robot = ReplayRobot(write_recording(tmp_path / "s.jsonl", Recording(2, episodes=[episode])))
     robot.start()
     with pytest.raises(ReplayMismatchError, match="push 1: asked for"):

@@ -67,17 +67,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             truth = getattr(robot, "truth", {})
             if "mass_distribution" in truth:
                 print(f"  truth    {fmt(truth['mass_distribution'])}")
-            good = [r.config for r in episode.reports if r.config is not None]
-            recorded.append(
-                {
-                    "id": "",
-                    "lengths": episode.start.lengths,
-                    "observations": [episode.start.config, *good],
-                    "actions": episode.actions[: len(good)],
-                    "masses": truth.get("masses"),
-                    "label": args.label,
-                }
-            )
+            recorded.append(episode.recorded(id="", masses=truth.get("masses"), label=args.label))
     finally:
         robot.close()
     if args.record:

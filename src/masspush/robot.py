@@ -191,6 +191,17 @@ class EstimationEpisode:
     def failure(self) -> str | None:
         return self.reports[-1].failure if self.reports else None
 
+    def recorded(self, **fields: Any) -> dict[str, Any]:
+        """The episode as a recording's episode (`masspush.recording`): its successful
+        pushes and rest poses, plus `fields` (id, label, masses...)."""
+        configs = [r.config for r in self.reports if r.config is not None]
+        return {
+            **fields,
+            "lengths": self.start.lengths,
+            "observations": [self.start.config, *configs],
+            "actions": self.actions[: len(configs)],
+        }
+
     def history(self) -> Episodes:
         """The successful pushes so far, in the predictor's input format."""
         configs = [self.start.config] + [r.config for r in self.reports if r.config is not None]
