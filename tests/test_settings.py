@@ -30,6 +30,14 @@ def test_each_setting_names_its_pusher():
     }
 
 
+def test_the_real_setup_is_a_setting_of_its_own():
+    # The paper's UR10 experiment: 2 links of 0.01-0.3 kg; not one of Table 1's six.
+    s = get_setting("real-ur10")
+    assert (s.n_links, s.mass_range, s.pusher) == (2, (0.01, 0.3), "ur10")
+    assert "real-ur10" not in SETTINGS
+    assert abs(s.physics().joint_limit - 1.5708) < 0.03
+
+
 def test_a_settings_file_may_choose_the_pusher(tmp_path):
     path = tmp_path / "s.toml"
     path.write_text(

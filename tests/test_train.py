@@ -63,11 +63,17 @@ def test_a_short_recipe_resumes_after_interruption_and_beats_the_floor(tmp_path,
     assert all(np.isfinite(h["percentage_error"]) for h in state["history"])
     assert {"policy-1", "data-final", "predictor-final"} <= set(state["timings"])
 
-    # TP and TP+ ship as files that load by name and refuse another setting.
+    # TP and TP+ ship as files that load by name and refuse another setting; with no RP
+    # shipped for the setting, predictor-0 ships as its random-push RP.
     models = tmp_path / "models"
     monkeypatch.setattr(evaluate_module, "SHIPPED_DIR", models)
     shipped = Recipe(SETTING, "stiff", run, TINY, progress=False).ship(models / SETTING.name)
-    assert {p.name for p in shipped} == {"tp.pt", "tp.policy.zip", "tp+.pt", "tp+.policy.zip"}
+    assert {p.name for p in shipped} == {
+        "rp.pt", "tp.pt", "tp.policy.zip", "tp+.pt", "tp+.policy.zip"
+    }  # fmt: skip
+    assert load_model(models / SETTING.name / "rp.pt")[1]["policy"] == "random"
+    again = Recipe(SETTING, "stiff", run, TINY, progress=False).ship(models / SETTING.name)
+    assert "rp.pt" not in {p.name for p in again}  # an RP already there is kept
     _, meta = load_model(models / SETTING.name / "tp+.pt", setting=SETTING.name, pusher="stiff")
     assert meta["policy"] == "learned" and meta["setting"]["name"] == SETTING.name
     result = evaluate(SETTING.name, "tp+", episodes=200)

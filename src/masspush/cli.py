@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 
@@ -171,6 +172,23 @@ def cmd_classify(args: argparse.Namespace) -> int:
     known = sum(e.get("label") is not None for e in recording.episodes)
     if known:
         print(f"accuracy on the {known} labelled episode(s): {100 * right / known:.1f} %")
+    return 0
+
+
+def cmd_sim2real(args: argparse.Namespace) -> int:
+    """The paper's real-robot protocol in the sim-to-real target world."""
+    from masspush.finetune import ClassifierConfig
+    from masspush.sim2real import Sim2RealConfig, run_sim2real
+
+    config = Sim2RealConfig(
+        setting=args.setting,
+        episodes_per_class=args.episodes_per_class,
+        seed=args.seed,
+        classifier=ClassifierConfig(folds=args.folds, seed=args.seed),
+    )
+    run_sim2real(config, args.out)
+    print((Path(args.out) / "summary.md").read_text(), end="")
+    print(f"recordings and summary in {args.out}")
     return 0
 
 
@@ -647,7 +665,9 @@ def build_parser() -> argparse.ArgumentParser:
     run = sub.add_parser(
         "run", help="estimation episodes through a robot backend (simulated or replayed)"
     )
-    run.add_argument("--robot", required=True, help="stiff, kuka, ur10 (simulated) or replay")
+    run.add_argument(
+        "--robot", required=True, help="stiff, kuka, ur10, target (sim-to-real) or replay"
+    )
     run.add_argument("--setting", required=True, help="named setting, e.g. 2link-0.1-1")
     run.add_argument("--settings-file", default=None, help="TOML file with custom settings")
     run.add_argument("--model", default="tp+", help="shipped name (rp, rp+, tp, tp+) or path")
@@ -687,6 +707,16 @@ def build_parser() -> argparse.ArgumentParser:
     cl.add_argument("--classifier", required=True)
     cl.add_argument("--episodes", required=True, help="recording")
     cl.set_defaults(func=cmd_classify)
+
+    s2r = sub.add_parser(
+        "sim2real", help="the paper's real-robot test in the sim-to-real target world"
+    )
+    s2r.add_argument("--setting", default="real-ur10")
+    s2r.add_argument("--episodes-per-class", type=int, default=30, help="paper: 30")
+    s2r.add_argument("--folds", type=int, default=5, help="cross-validation folds")
+    s2r.add_argument("--seed", type=int, default=0)
+    s2r.add_argument("--out", default="results/sim2real", help="recordings and summary")
+    s2r.set_defaults(func=cmd_sim2real)
 
     chk = sub.add_parser("check-episodes", help="validate a recording (docs/real-robot.md)")
     chk.add_argument("file")

@@ -5,8 +5,9 @@ configuration, then executes pushes one at a time, each followed by waiting for 
 to come to rest and observing it again. masspush owns everything else: which push to make
 (a policy), what the pushes say about the masses (a predictor), and the record of it all.
 
-Backends here: `SimRobot` (the simulated stiff pusher, KUKA or UR10) and `ReplayRobot`
-(plays back a recorded session, `masspush.recording`). A hardware backend is a class with
+Backends here: `SimRobot` (the simulated stiff pusher, KUKA or UR10), `TargetWorldRobot`
+(a simulated world unlike training, `masspush.target_world`) and `ReplayRobot` (plays back
+a recorded session, `masspush.recording`). A hardware backend is a class with
 the same three methods; docs/real-robot.md shows one.
 """
 
@@ -213,6 +214,9 @@ class EstimationEpisode:
         )
 
 
+BACKENDS = ("target", "replay")
+"""Robot backends besides the simulated pushers."""
+
 PushCallback = Callable[[int, np.ndarray, PushReport, "np.ndarray | None"], None]
 
 
@@ -270,16 +274,21 @@ def make_robot(
     seed: int = 0,
     masses: tuple[float, ...] | None = None,
 ) -> Robot:
-    """A robot by backend name: stiff, kuka, ur10 (simulated) or replay (a recording)."""
+    """A robot by backend name: stiff, kuka, ur10 (simulated), target (the sim-to-real
+    target world, `masspush.target_world`) or replay (a recording)."""
     from masspush.pusher import PUSHERS
 
     if backend in PUSHERS:
         return SimRobot(setting, backend, seed, masses)
+    if backend == "target":
+        from masspush.target_world import TargetWorldRobot
+
+        return TargetWorldRobot(setting, seed=seed, masses=masses)
     if backend == "replay":
         if recording is None:
             raise ValueError("the replay backend needs --episodes FILE (a recording)")
         return ReplayRobot(recording)
-    raise ValueError(f"unknown robot backend {backend!r}; known: {[*PUSHERS, 'replay']}")
+    raise ValueError(f"unknown robot backend {backend!r}; known: {[*PUSHERS, *BACKENDS]}")
 
 
 def fmt(values, digits: int = 3) -> str:

@@ -89,6 +89,14 @@ SETTINGS: dict[str, Setting] = {
     )
 }
 
+REAL_SETTING = Setting("real-ur10", 2, (0.01, 0.3), pusher="ur10")
+"""The paper's real experiment, trained in simulation: a UR10 pushes a 2-link chain whose
+links weigh 0.01-0.3 kg (its five test classes lie inside), hinge range +-pi/2 (our
+joint_limit, 1.55 rad, with self-collision at pi/2) [paper-details.md, "Real robot"]."""
+
+KNOWN_SETTINGS: dict[str, Setting] = {**SETTINGS, REAL_SETTING.name: REAL_SETTING}
+"""Every built-in setting: the paper's six and the real setup's."""
+
 
 def load_settings(path: str | Path) -> dict[str, Setting]:
     """Custom settings from a TOML file, each validated; errors name the file and setting."""
@@ -119,7 +127,7 @@ def load_settings(path: str | Path) -> dict[str, Setting]:
 
 def get_setting(name: str, settings_file: str | Path | None = None) -> Setting:
     """The named setting (the paper's, or one from `settings_file`), or a clear ValueError."""
-    known = dict(SETTINGS)
+    known = dict(KNOWN_SETTINGS)
     if settings_file is not None:
         known.update(load_settings(settings_file))
     try:

@@ -7,6 +7,7 @@ multi-threaded batch and must give the same rest poses (tests check it).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import mujoco
@@ -80,7 +81,15 @@ def settle_cap_steps(physics: PhysicsConfig) -> int:
 class ChainSim:
     """One chain in a MuJoCo scene with a pusher, always observed at rest."""
 
-    def __init__(self, chain: ChainParams, physics: PhysicsConfig, pusher: Pusher | None = None):
+    def __init__(
+        self,
+        chain: ChainParams,
+        physics: PhysicsConfig,
+        pusher: Pusher | None = None,
+        adjust: Callable[[mujoco.MjModel], None] | None = None,
+    ):
+        """`adjust`, if given, edits the compiled model before anything is simulated (the
+        sim-to-real target world changes solver and contact parameters this way)."""
         if chain.n_links != physics.n_links:
             raise ValueError(f"chain has {chain.n_links} links, physics config {physics.n_links}")
         self.chain = chain
@@ -91,6 +100,8 @@ class ChainSim:
         self.phase = "settle"
         """"push" while the pusher acts, "settle" while the chain slides to rest."""
         self.model = compile_scene(chain, physics, self.pusher.add_to)
+        if adjust is not None:
+            adjust(self.model)
         self.data = mujoco.MjData(self.model)
         self.layout = ChainLayout.of(self.model, chain.n_links)
         mujoco.mj_resetDataKeyframe(self.model, self.data, INITIAL_KEY)

@@ -135,8 +135,12 @@ class Recipe:
         return self.dir / f"policy-{i}" / "policy.zip"
 
     def ship(self, target_dir: Path) -> list[Path]:
-        """Export TP (predictor-1, policy-1) and TP+ (predictor-final, policy-M)."""
-        written = export_model(self.predictor(1), target_dir / "tp.pt")
+        """Export TP (predictor-1, policy-1) and TP+ (predictor-final, policy-M); and, for
+        a setting without RP baselines (e.g. real-ur10), predictor-0 as its random-push RP."""
+        written = []
+        if not (target_dir / "rp.pt").exists():
+            written += export_model(self.predictor(0), target_dir / "rp.pt")
+        written += export_model(self.predictor(1), target_dir / "tp.pt")
         return written + export_model(self.predictor("final"), target_dir / "tp+.pt")
 
     # --- the recipe -------------------------------------------------------------------

@@ -1,0 +1,161 @@
+"""The paper's real-robot protocol, run in the sim-to-real target world.
+
+For each policy (random pushes with the random-push predictor RP, the learned policy with
+TP+), episodes of the paper's five mass classes are run in `masspush.target_world` and
+recorded like real ones (`masspush.recording`, labelled). A classifier on the predictor's
+features is then cross-validated on each recording, as the paper did with its UR10
+episodes [paper-details.md, "Real robot"]. Recordings are kept, so a rerun only
+re-scores; `masspush finetune` on them gives the same accuracies.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from masspush.finetune import (
+    PAPER_CLASSES,
+    ClassifierConfig,
+    cross_validate,
+    labelled,
+    predictor_features,
+)
+
+PAPER_ACCURACY = {"random": 40.74, "learned": 81.4}
+"""The paper's real-robot accuracies, % (chance 20 %) [paper-details.md]."""
+ARMS = {"random": "rp", "learned": "tp+"}
+"""Which shipped model each arm of the experiment uses; each brings its own policy."""
+
+
+@dataclass(frozen=True)
+class Sim2RealConfig:
+    setting: str = "real-ur10"
+    episodes_per_class: int = 30
+    """Usable episodes (at least one push seen) per class and policy [paper: 30]."""
+    seed: int = 0
+    classifier: ClassifierConfig = field(default_factory=ClassifierConfig)
+
+    def __post_init__(self) -> None:
+        if self.episodes_per_class < self.classifier.folds:
+            raise ValueError(
+                f"episodes_per_class must be >= the {self.classifier.folds} folds, "
+                f"got {self.episodes_per_class}"
+            )
+
+
+def record_arm(
+    config: Sim2RealConfig, arm: str, path: Path, progress: bool = True
+) -> dict[str, Any]:
+    """Run one arm's episodes in the target world into the recording at `path` (kept and
+    reused when complete); returns counts of episodes and failed pushes."""
+    from masspush.evaluate import model_policy, resolve_model
+    from masspush.predictor import load_model
+    from masspush.recording import Recording, read_recording, write_recording
+    from masspush.robot import run_estimation
+    from masspush.settings import get_setting
+    from masspush.target_world import TargetWorldRobot
+
+    setting = get_setting(config.setting)
+    wanted = config.episodes_per_class * len(PAPER_CLASSES)
+    if path.exists():
+        recording = read_recording(path)
+        if len(recording.episodes) == wanted:
+            return {"episodes": wanted, "reused": True}
+    model_file = resolve_model(ARMS[arm], setting.name)
+    predictor, meta = load_model(model_file, setting.name)
+    policy = model_policy(meta, model_file)
+    recording = Recording(
+        n_links=setting.n_links, robot="masspush target world (sim-to-real)", setting=setting.name
+    )
+    failures: dict[str, int] = {}
+    bar = tqdm(total=wanted, desc=f"target world, {arm} pushes", disable=not progress)
+    for c, (label, masses) in enumerate(PAPER_CLASSES.items()):
+        # Seeds differ between classes but are shared by the two arms: both see the same
+        # chains, frictions and biases, so the comparison is paired.
+        robot = TargetWorldRobot(setting, seed=config.seed + 100_000 * c, masses=masses)
+        got = 0
+        while got < config.episodes_per_class:
+            seed = robot.seed
+            episode = run_estimation(robot, predictor, policy, setting.n_links, seed=seed)
+            if episode.failure is not None:
+                failures[episode.failure] = failures.get(episode.failure, 0) + 1
+            if not episode.estimates:
+                continue
+            got += 1
+            recording.episodes.append(
+                episode.recorded(id=f"{label}-{got:03d}", label=label, masses=robot.truth["masses"])
+            )
+            bar.update()
+        robot.close()
+    bar.close()
+    write_recording(path, recording)
+    return {"episodes": wanted, "failed_pushes": failures, "reused": False}
+
+
+def score_arm(config: Sim2RealConfig, arm: str, path: Path) -> dict[str, Any]:
+    """Cross-validated accuracy of the classifier on one arm's recording, with each kind
+    of predictor feature, and the predictor's own error on it."""
+    from masspush.evaluate import resolve_model
+    from masspush.metrics import percentage_error
+    from masspush.predictor import load_model
+    from masspush.recording import read_recording
+
+    recording = read_recording(path)
+    predictor, _ = load_model(resolve_model(ARMS[arm], config.setting), config.setting)
+    episodes = recording.to_episodes()
+    labels, classes = labelled(recording)
+    scores: dict[str, Any] = {"model": ARMS[arm], "classes": classes}
+    for kind in ("estimate", "lstm"):
+        features = predictor_features(predictor, episodes, kind)
+        cfg = ClassifierConfig(**{**asdict(config.classifier), "features": kind})
+        scores[kind] = cross_validate(features, labels, len(classes), cfg)
+    # Without any fine-tuning: how far the simulation-trained estimate is from the truth.
+    estimate = np.exp(predictor_features(predictor, episodes, "estimate"))
+    truth = episodes.masses / episodes.masses.sum(axis=1, keepdims=True)
+    scores["percentage_error"] = float(percentage_error(estimate, truth))
+    return scores
+
+
+def run_sim2real(
+    config: Sim2RealConfig, out_dir: str | Path, progress: bool = True
+) -> dict[str, Any]:
+    """Both arms: record (or reuse) and score; writes summary.json and summary.md."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    results: dict[str, Any] = {"config": asdict(config), "arms": {}}
+    for arm in ARMS:
+        path = out / f"{arm}.jsonl"
+        collected = record_arm(config, arm, path, progress)
+        results["arms"][arm] = {**collected, **score_arm(config, arm, path)}
+    (out / "summary.json").write_text(json.dumps(results, indent=2) + "\n")
+    (out / "summary.md").write_text(summary_markdown(results))
+    return results
+
+
+def summary_markdown(results: dict[str, Any]) -> str:
+    """The accuracy table (ours beside the paper's) and each arm's confusion matrix."""
+    lines = [
+        "| policy | model | accuracy, estimate features | accuracy, LSTM features (paper's) "
+        "| paper (real UR10) | chance | predictor error, no fine-tuning |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for arm, r in results["arms"].items():
+        lines.append(
+            f"| {arm} | {r['model']} | **{100 * r['estimate']['accuracy']:.1f} %** "
+            f"| {100 * r['lstm']['accuracy']:.1f} % | {PAPER_ACCURACY[arm]:.1f} % "
+            f"| {100 * r['estimate']['chance']:.0f} % | {r['percentage_error']:.2f} |"
+        )
+    for arm, r in results["arms"].items():
+        classes = r["classes"]
+        lines += ["", f"Confusion, {arm} policy, estimate features (rows: truth, columns: "
+                  "predicted; masses in kg):", "",
+                  "| truth \\ predicted | " + " | ".join(classes) + " |",
+                  "|---" * (len(classes) + 1) + "|"]  # fmt: skip
+        for label, row in zip(classes, r["estimate"]["confusion"], strict=True):
+            lines.append(f"| {label} | " + " | ".join(str(v) for v in row) + " |")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,234 @@
+"""A stand-in for the real world: a simulated world that deliberately differs from training.
+
+We have no robot, so the sim-to-real test (docs/real-robot.md) runs the trained models in
+a world built to differ from the one they were trained in the ways a real lab does:
+
+- **contact and solver**: pyramidal friction cones, the CG solver with few iterations, a
+  0.5 ms step, other link contact stiffness and damping, torsional friction (condim 4),
+  the table's friction (not a fixed 0.5) between links and with the tool;
+- **friction that varies over the table**: a smooth random field (a few planar waves),
+  felt by each link where it lies, updated every physics step; the mean is drawn from a
+  wider range than in training;
+- **geometry**: wider, taller links with a wider gap, each link's centre of mass off its
+  middle, and link lengths that the robot knows only as measured (a few mm off);
+- **tracking**: more noise than in training plus a bias held for the whole episode (a
+  calibration offset of the camera or the markers);
+- **actuation**: a per-episode gain on the push speed and bias on the contact point,
+  on top of more noise than in training.
+
+`TargetWorldRobot` is a `masspush.robot.Robot`: everything that runs on a robot runs in it
+(`masspush run --robot target`, `masspush sim2real`). Every number below is our own choice
+[ours]; docs/real-robot.md lists them beside the training world's.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from masspush.chain import sample_chain, wrap_angle
+from masspush.config import PhysicsConfig, Range
+from masspush.pusher import make_pusher
+from masspush.robot import PushReport, RestPose
+from masspush.simulate import ChainSim
+
+
+@dataclass(frozen=True)
+class TargetWorld:
+    """How the target world differs from the training simulation [ours, each]."""
+
+    # --- contact and solver -------------------------------------------------------------
+    timestep: float = 0.0005
+    """Physics step, s (training: 0.001)."""
+    solver_iterations: int = 20
+    """CG solver iterations (training: Newton, 100)."""
+    contact_solref: tuple[float, float] = (0.01, 0.8)
+    """Time constant and damping ratio of every link contact (training: MuJoCo's 0.02, 1)."""
+    contact_solimp: tuple[float, float, float] = (0.8, 0.95, 0.002)
+    """Impedance of every link contact (training: MuJoCo's 0.9, 0.95, 0.001)."""
+    torsional_friction: float = 0.01
+    """Torsional friction of link contacts, m (condim 4; training: condim 3)."""
+    # --- friction over the table ----------------------------------------------------------
+    friction_range: Range = (0.4, 1.1)
+    """Mean table friction ~ U(range) per episode (training: 0.5-1.0)."""
+    friction_variation: float = 0.15
+    """Relative std of the friction field over the table."""
+    friction_wavelength: Range = (0.15, 0.6)
+    """Wavelengths of the field's planar waves ~ U(range), m."""
+    friction_waves: int = 6
+    # --- geometry -----------------------------------------------------------------------
+    link_width: float = 0.045
+    """m (training: 0.04); the hinge gap grows with it, so links still meet at +-pi/2."""
+    link_height: float = 0.035
+    """m (training: 0.03)."""
+    com_offset: float = 0.006
+    """Each link's centre of mass sits ~ U(-c, c) along it from its middle, m."""
+    length_error: float = 0.003
+    """Std of the error of the link lengths the robot is told, m."""
+    # --- tracking -----------------------------------------------------------------------
+    obs_noise: float = 0.015
+    """Std of the per-observation noise on each component, m or rad (training: 0.01)."""
+    obs_bias: tuple[float, float] = (0.005, 0.02)
+    """Std of the per-episode bias: position (m), angles (rad)."""
+    # --- actuation ----------------------------------------------------------------------
+    action_noise: float = 0.02
+    """Std of the per-push noise on each action component (training: 0.01)."""
+    speed_gain: Range = (0.85, 1.15)
+    """Per-episode factor on a1 (the push speed) ~ U(range)."""
+    contact_bias: float = 0.03
+    """Std of the per-episode bias on a2 (where along the link the tool lands)."""
+
+    def __post_init__(self) -> None:
+        for name in ("timestep", "link_width", "link_height"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be positive, got {getattr(self, name)!r}")
+        for name in (
+            "com_offset", "length_error", "obs_noise", "action_noise", "contact_bias",
+            "friction_variation", "torsional_friction",
+        ):  # fmt: skip
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+        if self.solver_iterations < 1 or self.friction_waves < 1:
+            raise ValueError("solver_iterations and friction_waves must be >= 1")
+        lo, hi = self.friction_range
+        if not 0 < lo <= hi:
+            raise ValueError(f"friction_range must be 0 < low <= high, got {self.friction_range}")
+
+    def physics(self, base: PhysicsConfig) -> PhysicsConfig:
+        """The training world's physics with this world's geometry, step and friction."""
+        return replace(
+            base,
+            timestep=self.timestep,
+            link_width=self.link_width,
+            link_height=self.link_height,
+            joint_gap=base.joint_gap - base.link_width + self.link_width,
+            friction_range=tuple(self.friction_range),
+        )
+
+
+class FrictionField:
+    """Table friction over the plane: mu(p) = mu0 (1 + variation * sum of planar waves),
+    normalised so that its std over the table is `variation`, kept within mu0 * [0.5, 1.5]."""
+
+    def __init__(self, mean: float, world: TargetWorld, rng: np.random.Generator):
+        k = world.friction_waves
+        wavelength = rng.uniform(*world.friction_wavelength, size=k)
+        heading = rng.uniform(-math.pi, math.pi, size=k)
+        self.k = (2 * math.pi / wavelength)[:, None] * np.stack(
+            [np.cos(heading), np.sin(heading)], axis=1
+        )
+        self.phase = rng.uniform(-math.pi, math.pi, size=k)
+        self.mean = mean
+        self.amplitude = world.friction_variation * math.sqrt(2.0 / k)
+
+    def __call__(self, xy: np.ndarray) -> np.ndarray:
+        """Friction at each of the (m, 2) points."""
+        waves = np.cos(np.asarray(xy) @ self.k.T + self.phase).sum(axis=-1)
+        return self.mean * np.clip(1.0 + self.amplitude * waves, 0.5, 1.5)
+
+
+class TargetWorldRobot:
+    """The target world as a robot: each `start` places a new chain of the setting (masses
+    pinned if given) in a world that differs from training (`TargetWorld`)."""
+
+    def __init__(
+        self,
+        setting,
+        world: TargetWorld | None = None,
+        pusher: str | None = None,
+        seed: int = 0,
+        masses: tuple[float, ...] | None = None,
+    ):
+        from masspush.settings import get_setting
+
+        self.setting = get_setting(setting) if isinstance(setting, str) else setting
+        self.world = world or TargetWorld()
+        self.physics = self.world.physics(self.setting.physics())
+        self.pusher_name = pusher or self.setting.pusher
+        self.n_links = self.setting.n_links
+        self.seed = seed
+        self.pinned = None if masses is None else {"masses": list(masses)}
+        self.truth: dict[str, Any] = {}
+        self.sim: ChainSim | None = None
+
+    def start(self) -> RestPose:
+        while True:
+            self.rng = np.random.default_rng([self.seed, 7])
+            self.seed += 1
+            chain = sample_chain(self.physics, self.rng, self.pinned)
+            self.field = FrictionField(chain.friction, self.world, self.rng)
+            self._boxes: list[int] = []
+            self.sim = ChainSim(chain, self.physics, make_pusher(self.pusher_name), self._adjust)
+            if self.sim.initial_failure is None:
+                break
+        w, n = self.world, self.n_links
+        self.sim.on_step = self._update_friction
+        self.bias = np.concatenate(
+            [
+                self.rng.normal(0, w.obs_bias[0], 2),
+                self.rng.normal(0, w.obs_bias[1], 1 + n - 1),
+            ]
+        )
+        self.gain = self.rng.uniform(*w.speed_gain)
+        self.contact = self.rng.normal(0, w.contact_bias)
+        told = chain.lengths + self.rng.normal(0, w.length_error, n)
+        self.truth = {
+            "masses": np.array(chain.masses),
+            "mass_distribution": chain.mass_distribution,
+            "friction": chain.friction,
+            "config": self.sim.config(),
+            "lengths": np.array(chain.lengths),
+        }
+        return RestPose(self._observe(), told.astype(np.float32))
+
+    def push(self, action: np.ndarray) -> PushReport:
+        assert self.sim is not None, "start() first"
+        a = np.asarray(action, np.float64)
+        executed = np.array([a[0] * self.gain, a[1] + self.contact])
+        executed = np.clip(executed + self.rng.normal(0, self.world.action_noise, 2), -1, 1)
+        outcome = self.sim.push(executed)
+        details = {"executed": executed, "settle_time": outcome.settle_time}
+        details["config"] = self.sim.config()
+        if outcome.failure is not None:
+            return PushReport(None, outcome.failure, details)
+        return PushReport(self._observe(), None, details)
+
+    def close(self) -> None:
+        self.sim = None
+
+    # --- the world's differences --------------------------------------------------------
+    def _adjust(self, model: mujoco.MjModel) -> None:
+        w = self.world
+        model.opt.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
+        model.opt.solver = mujoco.mjtSolver.mjSOL_CG
+        model.opt.iterations = w.solver_iterations
+        boxes = [model.geom(f"box{i}").id for i in range(self.n_links)]
+        # The links outrank the table and the tool, so their friction (the field's value
+        # where each lies) and contact parameters govern all their contacts; link-link
+        # contacts take the larger friction of the two.
+        for g in boxes:
+            model.geom_priority[g] = 2
+            model.geom_condim[g] = 4
+            model.geom_friction[g] = [self.field.mean, w.torsional_friction, 0.0001]
+            model.geom_solref[g] = w.contact_solref
+            model.geom_solimp[g, :3] = w.contact_solimp
+            body = model.geom_bodyid[g]
+            model.body_ipos[body, 0] += self.rng.uniform(-w.com_offset, w.com_offset)
+        self._boxes = boxes
+
+    def _update_friction(self) -> None:
+        sim = self.sim
+        assert sim is not None
+        xy = sim.data.geom_xpos[self._boxes, :2]
+        sim.model.geom_friction[self._boxes, 0] = self.field(xy)
+
+    def _observe(self) -> np.ndarray:
+        assert self.sim is not None
+        config = self.sim.config() + self.bias
+        config = config + self.rng.normal(0, self.world.obs_noise, config.shape)
+        config[2] = wrap_angle(config[2])
+        return config.astype(np.float32)

@@ -1,0 +1,63 @@
+import json
+
+import numpy as np
+import pytest
+
+from masspush.finetune import PAPER_CLASSES, ClassifierConfig
+from masspush.recording import read_recording
+from masspush.sim2real import Sim2RealConfig, run_sim2real
+
+# The shipped 2link-1-10 models (stiff pusher, fast) stand in for real-ur10's here.
+CONFIG = Sim2RealConfig(
+    setting="2link-1-10", episodes_per_class=2, classifier=ClassifierConfig(folds=2, epochs=50)
+)
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("sim2real")
+    return out, run_sim2real(CONFIG, out, progress=False)
+
+
+def test_each_policy_records_the_paper_classes_with_their_masses(run):
+    out, _ = run
+    for arm in ("random", "learned"):
+        recording = read_recording(out / f"{arm}.jsonl")
+        assert recording.setting == "2link-1-10"
+        assert sorted(recording.labels) == sorted(list(PAPER_CLASSES) * 2)
+        for episode in recording.episodes:
+            np.testing.assert_allclose(episode["masses"], PAPER_CLASSES[episode["label"]])
+
+
+def test_both_policies_see_the_same_chains(run):
+    # Paired comparison: the same seeds, so the same starting poses up to the noise.
+    out, _ = run
+    random, learned = (read_recording(out / f"{arm}.jsonl") for arm in ("random", "learned"))
+    for a, b in zip(random.episodes, learned.episodes, strict=True):
+        np.testing.assert_allclose(a["observations"][0], b["observations"][0], atol=1e-6)
+
+
+def test_the_summary_scores_both_feature_kinds_beside_the_paper(run):
+    out, _ = run
+    saved = json.loads((out / "summary.json").read_text())
+    assert saved["arms"].keys() == {"random", "learned"}
+    for arm in saved["arms"].values():
+        for kind in ("estimate", "lstm"):
+            assert 0 <= arm[kind]["accuracy"] <= 1
+            assert np.sum(arm[kind]["confusion"]) == 10
+    table = (out / "summary.md").read_text()
+    assert "| learned | tp+ |" in table and "81.4 %" in table
+
+
+def test_a_rerun_reuses_the_recordings(run):
+    out, results = run
+    before = (out / "learned.jsonl").read_bytes()
+    again = run_sim2real(CONFIG, out, progress=False)
+    assert again["arms"]["learned"]["reused"] is True
+    assert (out / "learned.jsonl").read_bytes() == before
+    assert again["arms"]["learned"]["estimate"] == results["arms"]["learned"]["estimate"]
+
+
+def test_too_few_episodes_for_the_folds_are_refused():
+    with pytest.raises(ValueError, match="folds"):
+        Sim2RealConfig(episodes_per_class=3)

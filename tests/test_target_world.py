@@ -1,0 +1,115 @@
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+from masspush.chain import wrap_angle
+from masspush.robot import make_robot
+from masspush.target_world import FrictionField, TargetWorld, TargetWorldRobot
+
+SETTING = "2link-1-10"  # the stiff pusher keeps these tests fast
+
+
+def robot(world: TargetWorld | None = None, seed: int = 3) -> TargetWorldRobot:
+    return TargetWorldRobot(SETTING, world, seed=seed, masses=(2.0, 6.0))
+
+
+def test_the_model_differs_from_training_as_configured():
+    r = robot()
+    r.start()
+    m = r.sim.model
+    assert m.opt.cone == mujoco.mjtCone.mjCONE_PYRAMIDAL
+    assert m.opt.solver == mujoco.mjtSolver.mjSOL_CG
+    assert m.opt.timestep == 0.0005
+    assert list(m.geom_condim[r._boxes]) == [4, 4]
+    np.testing.assert_allclose(m.geom_solref[r._boxes], [[0.01, 0.8]] * 2)
+    # Geometry: the boxes are the world's size, not the training world's 4 x 3 cm.
+    np.testing.assert_allclose(m.geom_size[r._boxes][:, 1:], [[0.0225, 0.0175]] * 2)
+
+
+def test_each_link_feels_the_friction_of_the_table_where_it_lies():
+    r = robot()
+    r.start()
+    r.push(np.array([0.6, 0.3]))
+    xy = r.sim.data.geom_xpos[r._boxes, :2]
+    felt = r.sim.model.geom_friction[r._boxes, 0]
+    np.testing.assert_allclose(felt, r.field(xy), rtol=1e-3)  # last step's positions
+    assert felt[0] != felt[1]
+
+
+def test_the_friction_field_varies_around_its_mean_by_the_configured_amount():
+    world = TargetWorld(friction_variation=0.15)
+    field = FrictionField(0.8, world, np.random.default_rng(0))
+    xy = np.random.default_rng(1).uniform(-3, 3, size=(20_000, 2))
+    mu = field(xy)
+    assert abs(mu.mean() - 0.8) < 0.02
+    assert 0.08 < mu.std() / 0.8 < 0.22
+    assert mu.min() >= 0.4 and mu.max() <= 1.2
+
+
+def test_tracking_bias_is_held_for_an_episode_and_drawn_anew_for_the_next():
+    r = robot(TargetWorld(obs_noise=0.0))
+    seen = r.start()
+    errors = [seen.config - r.sim.config()]
+    report = r.push(np.array([0.5, 0.2]))
+    errors.append(report.config - r.sim.config())
+    errors = [np.concatenate([e[:2], [wrap_angle(e[2])], e[3:]]) for e in errors]
+    np.testing.assert_allclose(errors[0], errors[1], atol=1e-5)
+    assert np.abs(errors[0]).max() > 1e-3
+    next_start = r.start()
+    assert not np.allclose(next_start.config - r.sim.config(), errors[0], atol=1e-5)
+
+
+def test_actuation_has_a_per_episode_gain_and_contact_bias():
+    r = robot(TargetWorld(action_noise=0.0))
+    r.start()
+    a = np.array([0.4, 0.1])
+    executed = [r.push(a).details["executed"] for _ in range(2)]
+    np.testing.assert_allclose(executed[0], executed[1])
+    assert executed[0][0] == pytest.approx(0.4 * r.gain)
+    assert executed[0][1] == pytest.approx(0.1 + r.contact)
+    assert not np.allclose(executed[0], a)
+
+
+def test_the_robot_is_told_measured_lengths_not_the_true_ones():
+    r = robot()
+    rest = r.start()
+    error = rest.lengths - r.truth["lengths"]
+    assert 0 < np.abs(error).max() < 0.015
+
+
+def test_the_same_seed_gives_the_same_episode():
+    runs = []
+    for _ in range(2):
+        r = robot(seed=5)
+        rest = r.start()
+        report = r.push(np.array([0.7, -0.2]))
+        runs.append(np.concatenate([rest.config, report.config, rest.lengths]))
+    np.testing.assert_array_equal(runs[0], runs[1])
+
+
+def test_pinned_masses_are_the_chain_masses():
+    r = robot()
+    r.start()
+    np.testing.assert_allclose(r.truth["masses"], [2.0, 6.0])
+
+
+def test_make_robot_knows_the_target_backend():
+    r = make_robot("target", SETTING, seed=1)
+    assert isinstance(r, TargetWorldRobot) and r.n_links == 2
+
+
+@pytest.mark.parametrize(
+    "field, value", [("timestep", 0.0), ("obs_noise", -1.0), ("friction_range", (0.0, 1.0))]
+)
+def test_invalid_world_parameters_are_refused(field, value):
+    with pytest.raises(ValueError, match=field):
+        TargetWorld(**{field: value})
+
+
+def test_the_world_keeps_the_links_meeting_at_a_right_angle():
+    # The hinge gap grows with the width, so self-collision still backs the joint limit.
+    physics = TargetWorld().physics(robot().setting.physics())
+    assert physics.joint_gap == pytest.approx(physics.link_width)
+    assert physics.joint_limit < math.pi / 2
