@@ -616,7 +616,11 @@ def build_parser() -> argparse.ArgumentParser:
     ev = sub.add_parser("evaluate", help="evaluate a model on fresh simulated episodes")
     ev.add_argument("--setting", required=True)
     ev.add_argument("--settings-file", default=None)
-    ev.add_argument("--model", required=True, help="a model file, or rp, rp+, tp, tp+")
+    ev.add_argument(
+        "--model",
+        required=True,
+        help="a model file; rp, rp+, tp, tp+; or bayes, bayes-random (the particle filter)",
+    )
     ev.add_argument("--episodes", type=int, default=800)
     ev.add_argument("--seed", type=int, default=0)
     ev.add_argument("--pusher", default=None, help="default: the one the model was trained with")

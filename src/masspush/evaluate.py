@@ -65,10 +65,15 @@ def evaluate(
     settings_file: str | os.PathLike | None = None,
     workers: int | None = None,
 ) -> dict[str, Any]:
-    """Run `episodes` fresh episodes with the model's policy and report every metric."""
+    """Run `episodes` fresh episodes with the model's policy and report every metric.
+    `model` "bayes" / "bayes-random" is the particle filter (`masspush.bayes`)."""
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
     spec = setting if isinstance(setting, Setting) else get_setting(setting, settings_file)
+    from masspush.bayes import BAYES_MODELS, evaluate_bayes
+
+    if str(model) in BAYES_MODELS:
+        return evaluate_bayes(spec, str(model), episodes, seed, pusher)
     path = resolve_model(model, spec.name)
     predictor, meta = load_model(path, setting=spec.name, pusher=pusher)
     pusher = pusher or meta.get("pusher", "stiff")

@@ -1,0 +1,125 @@
+import warnings
+
+import numpy as np
+import pytest
+
+from masspush.bayes import (
+    BayesConfig,
+    InfoSeekingPolicy,
+    ParticleFilter,
+    UnexplainedObservationWarning,
+    _reflect,
+    chi2_quantile,
+    evaluate_bayes,
+    run_bayes_episode,
+)
+from masspush.config import EnvConfig
+from masspush.env import ChainEnv
+from masspush.settings import get_setting
+
+SETTING = get_setting("2link-1-10")  # stiff pusher: the filter's own
+SMALL = BayesConfig(particles=48, lookahead_particles=8, candidates=3)
+
+
+def env_config(noise: float = 0.01) -> EnvConfig:
+    return EnvConfig(physics=SETTING.physics(), pusher="stiff", obs_noise=noise, action_noise=noise)
+
+
+class FixedPushes:
+    def __init__(self, actions):
+        self.actions = list(actions)
+
+    def act(self, start):
+        return np.array(self.actions.pop(0))
+
+
+def test_without_noise_the_posterior_concentrates_on_the_truth():
+    cfg = EnvConfig(physics=SETTING.physics(), pusher="stiff", pushes=3, obs_noise=0.0,
+                    action_noise=0.0)  # fmt: skip
+    env = ChainEnv.from_config(cfg)
+    filt = ParticleFilter(cfg, BayesConfig(particles=96), seed=1)
+    # Pushes that do not make the links collide: those are chaotic (a 0.1 mm change of the
+    # start pose turns the rest pose by 0.05 rad), which no estimator can undo.
+    pushes = FixedPushes([(0.5, 0.8), (-0.5, -0.8), (0.5, 0.8)])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UnexplainedObservationWarning)
+        result = run_bayes_episode(env, filt, pushes, seed=0, pushes=3)
+    assert result["failure"] is None and len(result["posteriors"]) == 3
+    first, last = result["posteriors"][0], result["posteriors"][-1]
+    assert np.abs(last.mean - result["truth"]).max() < 0.02, (last.mean, result["truth"])
+    width, first_width = last.high - last.low, first.high - first.low
+    assert np.all(width < 0.1) and np.all(width < first_width / 3)
+    assert np.all((last.low <= result["truth"]) & (result["truth"] <= last.high))
+
+
+def test_an_observation_no_particle_explains_warns_and_leaves_no_nan():
+    filt = ParticleFilter(env_config(), SMALL, seed=0)
+    filt.reset(np.array([0.12, 0.12]))
+    start = np.array([0.0, 0.0, 0.3, 0.2])
+    impossible = start + np.array([0.8, -0.8, 2.0, 1.0])  # far off any push's reach
+    with pytest.warns(UnexplainedObservationWarning, match="tempered"):
+        posterior = filt.update(start, np.array([0.2, 0.5]), impossible)
+    assert np.all(np.isfinite(posterior.mean)) and np.all(np.isfinite(filt.log_w))
+    assert posterior.mean.sum() == pytest.approx(1.0)
+    assert posterior.ess >= 0.1 * SMALL.particles - 1e-6
+    assert filt.warnings == 1
+
+
+def test_resampling_rejuvenates_inside_the_prior():
+    filt = ParticleFilter(env_config(), SMALL, seed=0)
+    filt.reset(np.array([0.12, 0.12]))
+    filt.log_w = np.full(SMALL.particles, -50.0)
+    filt.log_w[:3] = 0.0  # three particles hold all the weight
+    filt._resample_and_rejuvenate()
+    assert len(np.unique(filt.masses[:, 0])) > 10  # rejuvenated, not 3 copies
+    lo, hi = SETTING.mass_range
+    assert filt.masses.min() >= lo - 1e-9 and filt.masses.max() <= hi + 1e-9
+    assert filt.ess == pytest.approx(SMALL.particles)
+
+
+def test_reflect_folds_values_back_into_range():
+    x = np.array([[-0.5, 1.2, 0.3]])
+    y = _reflect(x, np.zeros(3), np.ones(3))
+    np.testing.assert_allclose(y, [[0.5, 0.8, 0.3]])
+
+
+def test_chi2_quantile_approximation():
+    # Reference values of the chi-square distribution.
+    assert chi2_quantile(0.999, 4) == pytest.approx(18.467, rel=0.02)
+    assert chi2_quantile(0.95, 5) == pytest.approx(11.070, rel=0.02)
+
+
+def test_the_information_seeking_policy_prefers_an_informative_push():
+    # A push that misses the chain teaches nothing; a push of a link teaches something.
+    filt = ParticleFilter(env_config(), BayesConfig(particles=48, lookahead_particles=16),
+                          seed=0)  # fmt: skip
+    filt.reset(np.array([0.12, 0.12]))
+    start = np.array([0.0, 0.0, 0.0, 0.0])
+    scores = filt.expected_variance(start, np.array([[0.02, 0.0], [0.8, 0.6]]))
+    assert scores[1] < scores[0]
+    assert InfoSeekingPolicy(filt).act(start).shape == (2,)
+
+
+def test_bad_configs_are_refused():
+    with pytest.raises(ValueError, match="particles"):
+        BayesConfig(particles=2)
+    with pytest.raises(ValueError, match="credible"):
+        BayesConfig(credible=1.5)
+
+
+def test_evaluate_scores_the_filter_with_coverage_and_time(monkeypatch):
+    result = evaluate_bayes(SETTING, "bayes-random", episodes=3, config=SMALL, progress=False)
+    assert result["episodes"] + result["failures"] == 3
+    assert 0 <= result["coverage"] <= 1 and result["seconds_per_episode"] > 0
+    assert result["percentage_error"] < result["constant_floor"] * 2
+    with pytest.raises(ValueError, match="unknown Bayesian model"):
+        evaluate_bayes(SETTING, "bayes-magic", episodes=1, config=SMALL, progress=False)
+
+
+@pytest.mark.slow
+def test_information_seeking_beats_random_pushes_and_intervals_cover():
+    config = BayesConfig(particles=128, lookahead_particles=16, candidates=6)
+    random = evaluate_bayes(SETTING, "bayes-random", episodes=16, config=config, progress=False)
+    seeking = evaluate_bayes(SETTING, "bayes", episodes=16, config=config, progress=False)
+    assert seeking["percentage_error"] < random["percentage_error"], (seeking, random)
+    assert 0.7 <= seeking["coverage"] <= 1.0 and 0.7 <= random["coverage"] <= 1.0
