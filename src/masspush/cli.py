@@ -192,6 +192,21 @@ def cmd_sim2real(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    """Fit a model's Dirichlet uncertainty head on fresh episodes of its policy."""
+    from masspush.settings import get_setting
+    from masspush.uncertainty import HeadConfig, calibrate
+
+    setting = get_setting(args.setting, args.settings_file)
+    result = calibrate(setting, args.model, HeadConfig(episodes=args.episodes), args.out)
+    print(
+        f"wrote {result['file']} (fitted on {result['episodes']} episodes; 90 % intervals "
+        f"cover {100 * result['coverage_on_fit']:.1f} % of them); "
+        f"`masspush evaluate --setting {setting.name} --model {args.model}` reports coverage"
+    )
+    return 0
+
+
 def cmd_check_episodes(args: argparse.Namespace) -> int:
     """Validate a recording: every problem with its line and field."""
     from masspush.recording import check_recording, read_recording
@@ -721,6 +736,16 @@ def build_parser() -> argparse.ArgumentParser:
     s2r.add_argument("--seed", type=int, default=0)
     s2r.add_argument("--out", default="results/sim2real", help="recordings and summary")
     s2r.set_defaults(func=cmd_sim2real)
+
+    cal = sub.add_parser(
+        "calibrate", help="fit a model's learned uncertainty (a Dirichlet head) for intervals"
+    )
+    cal.add_argument("--setting", required=True)
+    cal.add_argument("--settings-file", default=None, help="TOML file with custom settings")
+    cal.add_argument("--model", default="tp+", help="shipped name or path of the predictor")
+    cal.add_argument("--episodes", type=int, default=4000, help="fresh episodes to fit on")
+    cal.add_argument("--out", default=None, help="default: <model>.dirichlet.pt beside it")
+    cal.set_defaults(func=cmd_calibrate)
 
     chk = sub.add_parser("check-episodes", help="validate a recording (docs/real-robot.md)")
     chk.add_argument("file")

@@ -85,6 +85,11 @@ def evaluate(
         raise ValueError("every evaluation episode failed; nothing to score")
     predictions = predictor.predict(good)
     truth = good.mass_distribution
+    extra = {}
+    from masspush.uncertainty import coverage, head_path, load_head
+
+    if head_path(path).exists():  # the model's learned uncertainty
+        extra["coverage"] = coverage(predictor, load_head(head_path(path), spec.name), good)
     return {
         "setting": spec.name,
         "model": str(model),
@@ -98,4 +103,5 @@ def evaluate(
         "percentage_error_after_each_push": [
             percentage_error(predictions[:, k], truth) for k in range(predictions.shape[1])
         ],
+        **extra,
     }

@@ -1,0 +1,72 @@
+import shutil
+
+import numpy as np
+import pytest
+
+from masspush import evaluate as evaluate_module
+from masspush.config import EnvConfig
+from masspush.evaluate import SHIPPED_DIR, evaluate
+from masspush.predictor import load_model
+from masspush.rollout import EVAL, TRAIN, RandomPolicy, run_episodes
+from masspush.settings import get_setting
+from masspush.uncertainty import (
+    HeadConfig,
+    coverage,
+    fit_head,
+    head_path,
+    intervals,
+    load_head,
+    save_head,
+)
+
+SETTING = get_setting("2link-1-10")
+
+
+@pytest.fixture(scope="module")
+def fitted():
+    predictor, _ = load_model(SHIPPED_DIR / SETTING.name / "rp+.pt", SETTING.name)
+    env = EnvConfig(physics=SETTING.physics(), pusher="stiff")
+    train = run_episodes(env, RandomPolicy(), np.arange(400), TRAIN, 7919)
+    test = run_episodes(env, RandomPolicy(), np.arange(300), EVAL, 5)
+    head = fit_head(predictor, train.select(train.ok), HeadConfig(steps=300))
+    return predictor, head, test.select(test.ok)
+
+
+def test_fitted_intervals_cover_near_their_nominal_share_on_fresh_episodes(fitted):
+    predictor, head, test = fitted
+    share = coverage(predictor, head, test, 0.9)
+    assert 0.8 <= share <= 0.97, share
+    # Narrower claims cover less: the intervals carry information, not just width.
+    assert coverage(predictor, head, test, 0.5) < share - 0.2
+
+
+def test_beta_quantiles_of_a_flat_dirichlet():
+    # Dirichlet(1, 1): each share is uniform on [0, 1].
+    low, high = intervals(np.array([[1.0, 1.0]]), 0.9, samples=40_000)
+    np.testing.assert_allclose(low, [[0.05, 0.05]], atol=0.01)
+    np.testing.assert_allclose(high, [[0.95, 0.95]], atol=0.01)
+
+
+def test_a_head_round_trips_and_refuses_another_setting(fitted, tmp_path):
+    predictor, head, test = fitted
+    path = save_head(tmp_path / "m.dirichlet.pt", head, {"setting": SETTING.name})
+    again = load_head(path, SETTING.name)
+    assert coverage(predictor, again, test) == coverage(predictor, head, test)
+    with pytest.raises(ValueError, match="belongs to setting"):
+        load_head(path, "2link-0.1-1")
+
+
+def test_evaluate_reports_coverage_when_the_model_has_a_head(fitted, tmp_path, monkeypatch):
+    _, head, _ = fitted
+    models = tmp_path / "models"
+    shutil.copytree(SHIPPED_DIR / SETTING.name, models / SETTING.name,
+                    ignore=shutil.ignore_patterns("*.dirichlet.pt"))  # fmt: skip
+    monkeypatch.setattr(evaluate_module, "SHIPPED_DIR", models)
+    assert "coverage" not in evaluate(SETTING.name, "rp+", episodes=20)
+    save_head(head_path(models / SETTING.name / "rp+.pt"), head, {"setting": SETTING.name})
+    assert 0 <= evaluate(SETTING.name, "rp+", episodes=20)["coverage"] <= 1
+
+
+def test_bad_head_configs_are_refused():
+    with pytest.raises(ValueError, match="credible"):
+        HeadConfig(credible=0.0)
