@@ -207,6 +207,24 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bayes_table(args: argparse.Namespace) -> int:
+    """The Bayesian estimator and the learned uncertainty beside Table 1 (resumable)."""
+    from masspush.baselines import PAPER_TABLE
+    from masspush.bayes_table import bayes_table
+
+    names = list(PAPER_TABLE) if args.settings == "all" else args.settings.split(",")
+    text = bayes_table(
+        names,
+        args.episodes,
+        args.models.split(","),
+        tp_episodes=args.tp_episodes,
+        measure_missing=not args.table_only,
+    )
+    print(text, end="")
+    print("wrote results/bayes.md")
+    return 0
+
+
 def cmd_check_episodes(args: argparse.Namespace) -> int:
     """Validate a recording: every problem with its line and field."""
     from masspush.recording import check_recording, read_recording
@@ -746,6 +764,16 @@ def build_parser() -> argparse.ArgumentParser:
     cal.add_argument("--episodes", type=int, default=4000, help="fresh episodes to fit on")
     cal.add_argument("--out", default=None, help="default: <model>.dirichlet.pt beside it")
     cal.set_defaults(func=cmd_calibrate)
+
+    bt = sub.add_parser(
+        "bayes-table", help="the Bayesian estimator and learned uncertainty beside Table 1"
+    )
+    bt.add_argument("--settings", default="all", help="all, or a comma-separated list")
+    bt.add_argument("--episodes", type=int, default=50, help="per setting, for the filter")
+    bt.add_argument("--models", default="bayes,bayes-random,tp+")
+    bt.add_argument("--tp-episodes", type=int, default=800, help="for TP+ and its coverage")
+    bt.add_argument("--table-only", action="store_true", help="only rebuild from the cache")
+    bt.set_defaults(func=cmd_bayes_table)
 
     chk = sub.add_parser("check-episodes", help="validate a recording (docs/real-robot.md)")
     chk.add_argument("file")

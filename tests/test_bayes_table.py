@@ -1,0 +1,31 @@
+import masspush.evaluate as evaluate_module
+from masspush.bayes_table import bayes_table
+
+
+def fake_evaluate(calls):
+    def evaluate(setting, model, episodes, seed=0):
+        calls.append((setting, model, episodes))
+        return {"percentage_error": 3.0 if model == "bayes" else 5.0, "coverage": 0.9,
+                "seconds_per_episode": 4.2, "episodes": episodes}  # fmt: skip
+
+    return evaluate
+
+
+def test_measurements_are_cached_and_the_table_built_from_them(tmp_path, monkeypatch):
+    calls = []
+    monkeypatch.setattr(evaluate_module, "evaluate", fake_evaluate(calls))
+    text = bayes_table(["2link-1-10"], 7, root=tmp_path, tp_episodes=9)
+    assert sorted(calls) == [
+        ("2link-1-10", "bayes", 7), ("2link-1-10", "bayes-random", 7), ("2link-1-10", "tp+", 9)
+    ]  # fmt: skip
+    assert "| 2link-1-10 | 5.00 / 8.26 | **3.00** | 5.00 | 90 % / 90 % / 90 % | 4.2 | 7 |" in text
+    bayes_table(["2link-1-10"], 7, root=tmp_path, tp_episodes=9)  # all cached
+    assert len(calls) == 3
+    bayes_table(["2link-1-10"], 8, ["bayes"], root=tmp_path)  # another size: measured again
+    assert calls[-1] == ("2link-1-10", "bayes", 8)
+    assert (tmp_path / "results" / "bayes.md").read_text().count("| 2link-1-10 |") == 1
+
+
+def test_table_only_reports_what_is_missing(tmp_path):
+    text = bayes_table(["3link-0.1-1"], 5, root=tmp_path, measure_missing=False)
+    assert "| 3link-0.1-1 | not yet / 12.02 | **not yet** |" in text
