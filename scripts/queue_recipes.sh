@@ -15,3 +15,5 @@ run 3link-1-10   --setting 3link-1-10   --meta-iterations 2 --iteration-episodes
 run 2link-0.1-1  --setting 2link-0.1-1  --meta-iterations 2 --ppo-steps 20000 --envs 8 --iteration-episodes 4000 --final-episodes 8000
 run 3link-0.1-10 --setting 3link-0.1-10 --meta-iterations 1 --iteration-episodes 8000 --final-episodes 16000
 run 3link-0.1-1  --setting 3link-0.1-1  --meta-iterations 1 --ppo-steps 10000 --envs 8 --iteration-episodes 2000 --final-episodes 4000
+# The paper's real setup (docs/real-robot.md): ships rp (predictor-0), tp and tp+.
+run real-ur10    --setting real-ur10    --meta-iterations 2 --ppo-steps 20000 --envs 8 --iteration-episodes 4000 --final-episodes 8000

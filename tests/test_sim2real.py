@@ -61,3 +61,12 @@ def test_a_rerun_reuses_the_recordings(run):
 def test_too_few_episodes_for_the_folds_are_refused():
     with pytest.raises(ValueError, match="folds"):
         Sim2RealConfig(episodes_per_class=3)
+
+
+def test_the_control_runs_in_the_training_world(tmp_path):
+    from dataclasses import replace
+
+    run_sim2real(replace(CONFIG, world="training"), tmp_path, progress=False)
+    assert read_recording(tmp_path / "learned.jsonl").robot == "masspush training world"
+    with pytest.raises(ValueError, match="world must be one of"):
+        Sim2RealConfig(world="moon")

@@ -45,7 +45,7 @@ class BayesConfig:
     """The particle filter and the information-seeking policy [ours, each]."""
 
     particles: int = 256
-    motion_slack: float = 0.1
+    motion_slack: float = 0.05
     """Extra likelihood std per unit of predicted change of a component."""
     ess_fraction: float = 0.5
     """Resample when the effective sample size falls below this fraction of particles."""

@@ -184,6 +184,7 @@ def cmd_sim2real(args: argparse.Namespace) -> int:
         setting=args.setting,
         episodes_per_class=args.episodes_per_class,
         seed=args.seed,
+        world=args.world,
         classifier=ClassifierConfig(folds=args.folds, seed=args.seed),
     )
     run_sim2real(config, args.out)
@@ -753,6 +754,12 @@ def build_parser() -> argparse.ArgumentParser:
     s2r.add_argument("--folds", type=int, default=5, help="cross-validation folds")
     s2r.add_argument("--seed", type=int, default=0)
     s2r.add_argument("--out", default="results/sim2real", help="recordings and summary")
+    s2r.add_argument(
+        "--world",
+        default="target",
+        choices=("target", "training"),
+        help="training: the control run in the models' own world",
+    )
     s2r.set_defaults(func=cmd_sim2real)
 
     cal = sub.add_parser(

@@ -29,6 +29,7 @@ from masspush.finetune import (
 PAPER_ACCURACY = {"random": 40.74, "learned": 81.4}
 """The paper's real-robot accuracies, % (chance 20 %) [paper-details.md]."""
 ARMS = {"random": "rp", "learned": "tp+"}
+WORLDS = ("target", "training")
 """Which shipped model each arm of the experiment uses; each brings its own policy."""
 
 
@@ -38,9 +39,14 @@ class Sim2RealConfig:
     episodes_per_class: int = 30
     """Usable episodes (at least one push seen) per class and policy [paper: 30]."""
     seed: int = 0
+    world: str = "target"
+    """"target": the sim-to-real target world; "training": the world the models were
+    trained in (the control: what the protocol gives without any gap)."""
     classifier: ClassifierConfig = field(default_factory=ClassifierConfig)
 
     def __post_init__(self) -> None:
+        if self.world not in WORLDS:
+            raise ValueError(f"world must be one of {WORLDS}, got {self.world!r}")
         if self.episodes_per_class < self.classifier.folds:
             raise ValueError(
                 f"episodes_per_class must be >= the {self.classifier.folds} folds, "
@@ -52,32 +58,39 @@ def record_arm(
     config: Sim2RealConfig, arm: str, path: Path, progress: bool = True
 ) -> dict[str, Any]:
     """Run one arm's episodes in the target world into the recording at `path` (kept and
-    reused when complete); returns counts of episodes and failed pushes."""
+    reused when complete, with its failed-push counts beside it); returns the counts."""
     from masspush.evaluate import model_policy, resolve_model
     from masspush.predictor import load_model
     from masspush.recording import Recording, read_recording, write_recording
-    from masspush.robot import run_estimation
+    from masspush.robot import SimRobot, run_estimation
     from masspush.settings import get_setting
     from masspush.target_world import TargetWorldRobot
 
     setting = get_setting(config.setting)
     wanted = config.episodes_per_class * len(PAPER_CLASSES)
-    if path.exists():
+    counts = path.with_suffix(".failures.json")
+    if path.exists() and counts.exists():
         recording = read_recording(path)
         if len(recording.episodes) == wanted:
-            return {"episodes": wanted, "reused": True}
+            return {"episodes": wanted, "failed_pushes": json.loads(counts.read_text()),
+                    "reused": True}  # fmt: skip
     model_file = resolve_model(ARMS[arm], setting.name)
     predictor, meta = load_model(model_file, setting.name)
     policy = model_policy(meta, model_file)
     recording = Recording(
-        n_links=setting.n_links, robot="masspush target world (sim-to-real)", setting=setting.name
+        n_links=setting.n_links, robot=f"masspush {config.world} world", setting=setting.name
     )
     failures: dict[str, int] = {}
-    bar = tqdm(total=wanted, desc=f"target world, {arm} pushes", disable=not progress)
+    bar = tqdm(total=wanted, desc=f"{config.world} world, {arm} pushes", disable=not progress)
     for c, (label, masses) in enumerate(PAPER_CLASSES.items()):
         # Seeds differ between classes but are shared by the two arms: both see the same
         # chains, frictions and biases, so the comparison is paired.
-        robot = TargetWorldRobot(setting, seed=config.seed + 100_000 * c, masses=masses)
+        seed = config.seed + 100_000 * c
+        robot = (
+            TargetWorldRobot(setting, seed=seed, masses=masses)
+            if config.world == "target"
+            else SimRobot(setting, seed=seed, masses=masses)
+        )
         got = 0
         while got < config.episodes_per_class:
             seed = robot.seed
@@ -94,6 +107,7 @@ def record_arm(
         robot.close()
     bar.close()
     write_recording(path, recording)
+    counts.write_text(json.dumps(failures) + "\n")
     return {"episodes": wanted, "failed_pushes": failures, "reused": False}
 
 
@@ -141,14 +155,15 @@ def summary_markdown(results: dict[str, Any]) -> str:
     """The accuracy table (ours beside the paper's) and each arm's confusion matrix."""
     lines = [
         "| policy | model | accuracy, estimate features | accuracy, LSTM features (paper's) "
-        "| paper (real UR10) | chance | predictor error, no fine-tuning |",
-        "|---|---|---|---|---|---|---|",
+        "| paper (real UR10) | chance | predictor error, no fine-tuning | failed pushes |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for arm, r in results["arms"].items():
         lines.append(
             f"| {arm} | {r['model']} | **{100 * r['estimate']['accuracy']:.1f} %** "
             f"| {100 * r['lstm']['accuracy']:.1f} % | {PAPER_ACCURACY[arm]:.1f} % "
-            f"| {100 * r['estimate']['chance']:.0f} % | {r['percentage_error']:.2f} |"
+            f"| {100 * r['estimate']['chance']:.0f} % | {r['percentage_error']:.2f} "
+            f"| {sum(r.get('failed_pushes', {}).values())} |"
         )
     for arm, r in results["arms"].items():
         classes = r["classes"]
