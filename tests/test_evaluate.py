@@ -7,8 +7,8 @@ import pytest
 
 import masspush.evaluate as evaluate_module
 from masspush.config import EnvConfig
-from masspush.evaluate import evaluate, resolve_model
-from masspush.predictor import MassPredictor, save_model, step_inputs
+from masspush.evaluate import SHIPPED_DIR, evaluate, resolve_model
+from masspush.predictor import MassPredictor, load_model, save_model, step_inputs
 from masspush.rollout import TRAIN, RandomPolicy, run_batch
 from masspush.settings import get_setting
 
@@ -74,3 +74,23 @@ def test_unknown_models_are_clear_errors(model_file, tmp_path, monkeypatch):
         resolve_model("tp", "2link-0.1-1")
     with pytest.raises(ValueError, match="trained for setting"):
         evaluate("3link-0.1-1", model_file, episodes=2)
+
+
+def test_every_shipped_model_loads_by_name_with_its_policy():
+    from masspush.evaluate import model_policy
+    from masspush.settings import KNOWN_SETTINGS, SETTINGS
+    from masspush.uncertainty import load_head
+
+    for name in SETTINGS:  # the paper's six: all four models of Table 1
+        for model in ("rp", "rp+", "tp", "tp+"):
+            assert (SHIPPED_DIR / name / f"{model}.pt").exists(), (name, model)
+    for name in KNOWN_SETTINGS:
+        for path in sorted((SHIPPED_DIR / name).glob("*.pt")):
+            if path.name.endswith(".dirichlet.pt"):
+                load_head(path, name)
+                continue
+            _, meta = load_model(resolve_model(path.stem, name), name)
+            policy = model_policy(meta, path)  # a learned one loads its shipped policy file
+            expected = "random" if path.stem.startswith("rp") else "learned"
+            assert meta.get("policy", "random") == expected, (name, path.name)
+            assert (policy.name == "random") == (expected == "random")
