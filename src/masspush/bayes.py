@@ -62,6 +62,10 @@ class BayesConfig:
     """Actions the information-seeking policy compares before each push."""
     lookahead_particles: int = 32
     """Particles simulated per candidate action."""
+    max_push: float = 1.0
+    """Largest |a1| (push speed / 5 m/s) among the candidates. The filter simulates the
+    stiff pusher; where an arm pushes, its model holds only for pushes the arm tracks
+    (`ARM_MAX_PUSH`)."""
     nthread: int = 0
     """Threads of the batch path; 0: every core."""
 
@@ -71,6 +75,8 @@ class BayesConfig:
         for name in ("ess_fraction", "shrink", "unexplained_quantile", "min_ess", "credible"):
             if not 0 < getattr(self, name) < 1:
                 raise ValueError(f"{name} must be in (0, 1), got {getattr(self, name)!r}")
+        if not 0 < self.max_push <= 1:
+            raise ValueError(f"max_push must be in (0, 1], got {self.max_push}")
         if self.motion_slack < 0:
             raise ValueError(f"motion_slack must be >= 0, got {self.motion_slack}")
 
@@ -299,6 +305,7 @@ class InfoSeekingPolicy:
     def act(self, start: np.ndarray) -> np.ndarray:
         n = self.filter.config.candidates
         candidates = self.rng.uniform(-1, 1, size=(n, 2))
+        candidates[:, 0] *= self.filter.config.max_push
         scores = self.filter.expected_variance(start, candidates)
         return candidates[int(np.argmin(scores))]
 
@@ -366,6 +373,13 @@ def run_bayes_episode(
     return result
 
 
+ARM_MAX_PUSH = 0.15
+"""Where an arm pushes, the information-seeking policy keeps to |a1| <= 0.15 (0.75 m/s). The
+KR 5 under the paper's control reaches ~2.6 m/s at most (torque limits), so a faster
+command is not the push the stiff model simulates; below ~0.5 m/s the arm and the stiff
+pusher leave a chain at nearly the same rest pose, at 1.6 m/s already 0.3-0.6 rad apart in
+yaw (docs/bayes.md)."""
+
 BAYES_MODELS = {"bayes": True, "bayes-random": False}
 """Model names `masspush evaluate` accepts for the filter: with information-seeking pushes,
 or with the paper's random pushes."""
@@ -398,6 +412,8 @@ def evaluate_bayes(
     pusher = pusher or setting.pusher
     env_config = EnvConfig(physics=setting.physics(), pusher=pusher)
     env = ChainEnv.from_config(env_config)
+    if config is None and pusher != "stiff":
+        config = BayesConfig(max_push=ARM_MAX_PUSH)
     filt = ParticleFilter(EnvConfig(physics=setting.physics(), pusher="stiff"), config, seed=seed)
     policy = InfoSeekingPolicy(filt, seed) if BAYES_MODELS[model] else None
     k = env_config.pushes
