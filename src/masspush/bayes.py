@@ -8,10 +8,11 @@ rest pose given its simulated one. The estimate is the posterior mean of the mas
 distribution, with credible intervals per link.
 
 The likelihood is Gaussian per configuration component with
-    sigma_k^2 = 2 obs_noise^2 + (motion_slack * |predicted change of k|)^2:
-both rest poses are observed with noise, and the action noise and the noisy start pose
-make far pushes less predictable than near ones. `motion_slack` is calibrated so that 90 %
-intervals cover about 90 % of true values (docs/results.md).
+    sigma_k^2 = obs_noise^2 + spread_k^2 + (motion_slack * |predicted change of k|)^2:
+the observation's noise; `spread`, how far the outcome moves when a few particles are
+pushed again from a start pose and with an action jittered by the sensing and actuation
+noise (large for pushes that make the links collide); and a slack for the rest
+(docs/bayes.md; coverage measured in docs/results.md).
 
 Degenerate weights: when the effective sample size drops below `ess_fraction` of the
 particles, they are resampled (systematic) and rejuvenated with a Liu-West kernel in
@@ -448,7 +449,7 @@ def evaluate_bayes(
             percentage_error(est[:, j], truth) for j in range(est.shape[1])
         ],
         "coverage": float(np.mean(inside)),
-        "credible": (config or BayesConfig()).credible,
+        "credible": filt.config.credible,
         "seconds_per_episode": seconds,
         "unexplained_observations": unexplained,
     }

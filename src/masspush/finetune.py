@@ -99,11 +99,7 @@ def predictor_features(
         if kind == "estimate":
             out = torch.log_softmax(predictor.head(out), dim=-1)
         out = out.numpy()
-    seen = ~np.isnan(episodes.observations[:, 1:, 0])
-    if not seen.any(axis=1).all():
-        raise ValueError("every episode needs at least one push with a rest pose after it")
-    last = seen.shape[1] - 1 - np.argmax(seen[:, ::-1], axis=1)
-    return out[np.arange(len(out)), last]
+    return out[np.arange(len(out)), episodes.last_seen()]
 
 
 def fit_classifier(

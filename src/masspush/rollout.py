@@ -106,6 +106,19 @@ class Episodes:
         """(E,) bool: episodes in which every push succeeded."""
         return (self.failure == 0).all(axis=1)
 
+    @property
+    def seen(self) -> np.ndarray:
+        """(E, K) bool: pushes after which a rest pose was observed."""
+        return ~np.isnan(self.observations[:, 1:, 0])
+
+    def last_seen(self) -> np.ndarray:
+        """(E,) index of each episode's last push with a rest pose after it; a ValueError
+        if an episode has none."""
+        seen = self.seen
+        if not seen.any(axis=1).all():
+            raise ValueError("every episode needs at least one push with a rest pose after it")
+        return seen.shape[1] - 1 - np.argmax(seen[:, ::-1], axis=1)
+
     def __len__(self) -> int:
         return len(self.index)
 

@@ -29,8 +29,8 @@ from masspush.finetune import (
 PAPER_ACCURACY = {"random": 40.74, "learned": 81.4}
 """The paper's real-robot accuracies, % (chance 20 %) [paper-details.md]."""
 ARMS = {"random": "rp", "learned": "tp+"}
-WORLDS = ("target", "training")
 """Which shipped model each arm of the experiment uses; each brings its own policy."""
+WORLDS = ("target", "training")
 
 
 @dataclass(frozen=True)
@@ -85,16 +85,15 @@ def record_arm(
     for c, (label, masses) in enumerate(PAPER_CLASSES.items()):
         # Seeds differ between classes but are shared by the two arms: both see the same
         # chains, frictions and biases, so the comparison is paired.
-        seed = config.seed + 100_000 * c
+        first = config.seed + 100_000 * c
         robot = (
-            TargetWorldRobot(setting, seed=seed, masses=masses)
+            TargetWorldRobot(setting, seed=first, masses=masses)
             if config.world == "target"
-            else SimRobot(setting, seed=seed, masses=masses)
+            else SimRobot(setting, seed=first, masses=masses)
         )
         got = 0
         while got < config.episodes_per_class:
-            seed = robot.seed
-            episode = run_estimation(robot, predictor, policy, setting.n_links, seed=seed)
+            episode = run_estimation(robot, predictor, policy, setting.n_links, seed=robot.seed)
             if episode.failure is not None:
                 failures[episode.failure] = failures.get(episode.failure, 0) + 1
             if not episode.estimates:
@@ -124,14 +123,15 @@ def score_arm(config: Sim2RealConfig, arm: str, path: Path) -> dict[str, Any]:
     episodes = recording.to_episodes()
     labels, classes = labelled(recording)
     scores: dict[str, Any] = {"model": ARMS[arm], "classes": classes}
-    for kind in ("estimate", "lstm"):
-        features = predictor_features(predictor, episodes, kind)
+    features = {
+        kind: predictor_features(predictor, episodes, kind) for kind in ("estimate", "lstm")
+    }
+    for kind, values in features.items():
         cfg = ClassifierConfig(**{**asdict(config.classifier), "features": kind})
-        scores[kind] = cross_validate(features, labels, len(classes), cfg)
+        scores[kind] = cross_validate(values, labels, len(classes), cfg)
     # Without any fine-tuning: how far the simulation-trained estimate is from the truth.
-    estimate = np.exp(predictor_features(predictor, episodes, "estimate"))
-    truth = episodes.masses / episodes.masses.sum(axis=1, keepdims=True)
-    scores["percentage_error"] = float(percentage_error(estimate, truth))
+    estimate = np.exp(features["estimate"])
+    scores["percentage_error"] = percentage_error(estimate, episodes.mass_distribution)
     return scores
 
 

@@ -77,11 +77,6 @@ def concentration(predictor: MassPredictor, head: PrecisionHead, episodes: Episo
         return (torch.exp(head(features)).unsqueeze(-1) * estimate).numpy()
 
 
-def _seen(episodes: Episodes) -> np.ndarray:
-    """(E, K) pushes after which a rest pose was observed."""
-    return ~np.isnan(episodes.observations[:, 1:, 0])
-
-
 def fit_head(
     predictor: MassPredictor, episodes: Episodes, config: HeadConfig = HeadConfig()
 ) -> PrecisionHead:
@@ -90,7 +85,7 @@ def fit_head(
     64 features memorises a few thousand episodes and then claims too much)."""
     torch.manual_seed(config.seed)
     features, estimate = _inputs(predictor, episodes)
-    seen = torch.as_tensor(_seen(episodes))
+    seen = torch.as_tensor(episodes.seen)
     truth = torch.as_tensor(episodes.mass_distribution, dtype=torch.float32).clamp_min(1e-4)
     truth = (truth / truth.sum(-1, keepdim=True)).unsqueeze(1).expand_as(estimate)
     held = torch.as_tensor(np.random.default_rng(config.seed).random(len(episodes)) < 0.2)
@@ -140,9 +135,7 @@ def coverage(
 ) -> float:
     """Share of true per-link values inside the intervals after each episode's last push."""
     alpha = concentration(predictor, head, episodes)
-    seen = _seen(episodes)
-    last = seen.shape[1] - 1 - np.argmax(seen[:, ::-1], axis=1)
-    final = alpha[np.arange(len(alpha)), last]
+    final = alpha[np.arange(len(alpha)), episodes.last_seen()]
     low, high = intervals(final, credible)
     truth = episodes.mass_distribution
     return float(np.mean((low <= truth) & (truth <= high)))
