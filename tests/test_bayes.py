@@ -4,6 +4,8 @@ import numpy as np
 import pytest
 
 from masspush.bayes import (
+    ARM_MAX_PUSH,
+    ARM_SURROGATE,
     BayesConfig,
     InfoSeekingPolicy,
     ParticleFilter,
@@ -11,6 +13,7 @@ from masspush.bayes import (
     _reflect,
     chi2_quantile,
     evaluate_bayes,
+    filter_for,
     run_bayes_episode,
 )
 from masspush.config import EnvConfig
@@ -100,11 +103,42 @@ def test_the_information_seeking_policy_prefers_an_informative_push():
     assert InfoSeekingPolicy(filt).act(start).shape == (2,)
 
 
+def test_heavy_tails_let_one_bad_component_count_less():
+    gauss = ParticleFilter(env_config(), BayesConfig(particles=48, tail_dof=None), seed=0)
+    student = ParticleFilter(env_config(), BayesConfig(particles=48, tail_dof=4), seed=0)
+    residual = np.array([[0.0, 0.0, 0.0, 0.0], [8.0, 0.0, 0.0, 0.0], [3.0, 3.0, 3.0, 3.0]])
+    g, t = gauss._log_lik(residual), student._log_lik(residual)
+    assert g[0] == t[0] == 0.0
+    assert g[1] - g[0] == pytest.approx(-32.0)
+    # Under the Gaussian one 8-sigma miss is worse than four 3-sigma ones; with heavy tails
+    # it is the other way round: a single bad component no longer decides.
+    assert g[1] < g[2] and t[1] > t[2]
+
+
+def test_where_an_arm_pushes_the_filter_simulates_its_surrogate():
+    setting = get_setting("2link-0.1-1")  # the KR 5 pushes
+    filt = filter_for(setting)
+    assert filt.physics.push_speed_max == ARM_SURROGATE["kuka"]["push_speed_max"]
+    assert filt.config.max_push == ARM_MAX_PUSH and filt.env.pusher == "stiff"
+    assert filter_for(setting, pusher="stiff").physics == setting.physics()
+
+
+def test_random_pushes_keep_to_the_filter_s_push_range():
+    cfg = BayesConfig(particles=16, lookahead_particles=4, max_push=0.1)
+    env = ChainEnv.from_config(env_config())
+    result = run_bayes_episode(env, ParticleFilter(env_config(), cfg), None, seed=3, pushes=2)
+    actions = np.array(result["actions"])
+    assert len(actions) == 2 and np.all(np.abs(actions[:, 0]) <= 0.1)
+    assert np.abs(actions[:, 1]).max() > 0.1  # the contact point still spans the links
+
+
 def test_bad_configs_are_refused():
     with pytest.raises(ValueError, match="particles"):
         BayesConfig(particles=2)
     with pytest.raises(ValueError, match="credible"):
         BayesConfig(credible=1.5)
+    with pytest.raises(ValueError, match="tail_dof"):
+        BayesConfig(tail_dof=0)
 
 
 def test_evaluate_scores_the_filter_with_coverage_and_time(monkeypatch):
@@ -123,3 +157,19 @@ def test_information_seeking_beats_random_pushes_and_intervals_cover():
     seeking = evaluate_bayes(SETTING, "bayes", episodes=16, config=config, progress=False)
     assert seeking["percentage_error"] < random["percentage_error"], (seeking, random)
     assert 0.7 <= seeking["coverage"] <= 1.0 and 0.7 <= random["coverage"] <= 1.0
+
+
+def test_longer_chains_get_a_wider_likelihood_and_fewer_candidates_by_default():
+    seen, slack = {}, {}
+    for links in (2, 3):
+        cfg = EnvConfig(physics=get_setting(f"{links}link-1-10").physics(), pusher="stiff")
+        filt = ParticleFilter(cfg, BayesConfig(particles=16, lookahead_particles=4))
+        slack[links] = filt.motion_slack
+
+        def record(start, actions, n=links):
+            seen[n] = len(actions)
+            return np.zeros(len(actions))
+
+        filt.expected_variance = record
+        InfoSeekingPolicy(filt).act(np.zeros(cfg.physics.obs_dim))
+    assert seen == {2: 8, 3: 6} and slack == {2: 0.05, 3: 0.1}

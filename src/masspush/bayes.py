@@ -7,12 +7,14 @@ pushed with the action that was commanded, all particles at once on the batch pa
 rest pose given its simulated one. The estimate is the posterior mean of the mass
 distribution, with credible intervals per link.
 
-The likelihood is Gaussian per configuration component with
+The likelihood is a Student-t (4 degrees of freedom; `tail_dof`, None for a Gaussian) per
+configuration component with scale
     sigma_k^2 = obs_noise^2 + spread_k^2 + (motion_slack * |predicted change of k|)^2:
 the observation's noise; `spread`, how far the outcome moves when a few particles are
 pushed again from a start pose and with an action jittered by the sensing and actuation
 noise (large for pushes that make the links collide); and a slack for the rest
-(docs/bayes.md; coverage measured in docs/results.md).
+(docs/bayes.md; coverage measured in docs/results.md). Where an arm pushes, the simulated
+pusher is the stiff one as the arm's fitted surrogate (`ARM_SURROGATE`).
 
 Degenerate weights: when the effective sample size drops below `ess_fraction` of the
 particles, they are resampled (systematic) and rejuvenated with a Liu-West kernel in
@@ -27,7 +29,7 @@ the posterior variance of the mass distribution, simulated under the current par
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from statistics import NormalDist
 
 import numpy as np
@@ -46,8 +48,10 @@ class BayesConfig:
     """The particle filter and the information-seeking policy [ours, each]."""
 
     particles: int = 256
-    motion_slack: float = 0.05
-    """Extra likelihood std per unit of predicted change of a component."""
+    motion_slack: float | None = None
+    """Extra likelihood scale per unit of predicted change of a component; None: 0.05 for
+    two links, 0.1 for longer chains, whose outcomes hang on more contacts between links
+    (chosen on the tuning episodes, seed 1, for 90 % intervals; docs/results.md)."""
     ess_fraction: float = 0.5
     """Resample when the effective sample size falls below this fraction of particles."""
     shrink: float = 0.9
@@ -59,8 +63,10 @@ class BayesConfig:
     """Fraction of particles a tempered update keeps as effective sample size."""
     credible: float = 0.9
     """Probability mass of the reported intervals."""
-    candidates: int = 8
-    """Actions the information-seeking policy compares before each push."""
+    candidates: int | None = None
+    """Actions the information-seeking policy compares before each push; None: 8 for two
+    links, 6 for longer chains, whose pushes cost more to simulate (it keeps a 3-link
+    episode within 10 s on two cores; docs/results.md)."""
     lookahead_particles: int = 32
     """Particles simulated per candidate action."""
     max_push: float = 1.0
@@ -69,16 +75,23 @@ class BayesConfig:
     (`ARM_MAX_PUSH`)."""
     nthread: int = 0
     """Threads of the batch path; 0: every core."""
+    tail_dof: float | None = 4.0
+    """Degrees of freedom of a Student-t likelihood per component; None: Gaussian. Heavy
+    tails keep the few outcomes the model reproduces badly (an arm's contact is not the
+    simulated pusher's; a collision turns a link unpredictably) from deciding the posterior
+    alone. 4 is the usual robust choice [Lange, Little & Taylor, JASA 1989]."""
 
     def __post_init__(self) -> None:
-        if self.particles < 8 or self.lookahead_particles < 4 or self.candidates < 1:
+        if self.particles < 8 or self.lookahead_particles < 4 or (self.candidates or 1) < 1:
             raise ValueError("particles >= 8, lookahead_particles >= 4 and candidates >= 1")
         for name in ("ess_fraction", "shrink", "unexplained_quantile", "min_ess", "credible"):
             if not 0 < getattr(self, name) < 1:
                 raise ValueError(f"{name} must be in (0, 1), got {getattr(self, name)!r}")
         if not 0 < self.max_push <= 1:
             raise ValueError(f"max_push must be in (0, 1], got {self.max_push}")
-        if self.motion_slack < 0:
+        if self.tail_dof is not None and self.tail_dof <= 0:
+            raise ValueError(f"tail_dof must be > 0 or None, got {self.tail_dof}")
+        if self.motion_slack is not None and self.motion_slack < 0:
             raise ValueError(f"motion_slack must be >= 0, got {self.motion_slack}")
 
 
@@ -107,6 +120,10 @@ class ParticleFilter:
         self.obs_sigma = max(env_config.obs_noise, 1e-3)
         self.warnings = 0
         """Observations no particle explained since `reset`."""
+        two = self.physics.n_links == 2
+        slack = self.config.motion_slack
+        self.motion_slack = (0.05 if two else 0.1) if slack is None else slack
+        self.candidates = self.config.candidates or (8 if two else 6)
 
     # --- the particles --------------------------------------------------------------------
     def reset(self, lengths: np.ndarray) -> None:
@@ -180,7 +197,7 @@ class ParticleFilter:
         ok = ~(bad | failed)
         if not ok.any():
             return np.full(len(start), np.inf)
-        diff = _config_difference(perturbed[ok], nominal[ok])
+        diff = config_difference(perturbed[ok], nominal[ok])
         return np.sqrt(np.mean(diff**2, axis=0))
 
     # --- the update -----------------------------------------------------------------------
@@ -194,12 +211,13 @@ class ParticleFilter:
             start, actions[:k], self.masses[:k], self.friction[:k], predicted[:k], failed[:k]
         )
         sigma = self._sigma(start, predicted, failed, spread)
-        residual = _config_difference(observed[None], predicted) / sigma
+        residual = config_difference(observed[None], predicted) / sigma
         chi = np.where(failed, np.inf, np.sum(residual**2, axis=1))
         finite = np.isfinite(chi)
+        log_lik = self._log_lik(residual)
         # A particle whose chain failed where the real one did not is far less likely, but
         # a finite penalty keeps the weights defined when every particle failed.
-        log_lik = -0.5 * np.where(finite, chi, (chi[finite].max() if finite.any() else 0) + 50)
+        log_lik = np.where(finite, log_lik, (log_lik[finite].min() if finite.any() else 0) - 25)
         dof = len(observed)
         if chi.min() > chi2_quantile(self.config.unexplained_quantile, dof):
             self.warnings += 1
@@ -223,11 +241,18 @@ class ParticleFilter:
         the start pose and the action, and a slack growing with the predicted motion (one
         sigma for all particles, so no particle is favoured for predicting less motion)."""
         ok = ~failed
-        change = np.abs(_config_difference(predicted[ok], start[None])).mean(axis=0) if ok.any() \
+        change = np.abs(config_difference(predicted[ok], start[None])).mean(axis=0) if ok.any() \
             else np.zeros(len(start))  # fmt: skip
         spread = np.where(np.isfinite(spread), spread, 10 * self.obs_sigma)
-        slack = self.config.motion_slack * change
+        slack = self.motion_slack * change
         return np.sqrt(self.obs_sigma**2 + spread**2 + slack**2)
+
+    def _log_lik(self, residual: np.ndarray) -> np.ndarray:
+        """Log-likelihood (up to a constant) of standardised residuals (..., d)."""
+        nu = self.config.tail_dof
+        if nu is None:
+            return -0.5 * np.sum(residual**2, axis=-1)
+        return -0.5 * (nu + 1) * np.sum(np.log1p(residual**2 / nu), axis=-1)
 
     def _temper(self, log_lik: np.ndarray) -> np.ndarray:
         """Scale the log-likelihood down until the updated weights keep `min_ess`."""
@@ -281,12 +306,12 @@ class ParticleFilter:
             y, bad = nominal[part], failed[part] | truth_failed[part]
             if bad.all():
                 continue
-            diff = _config_difference(truth[part][~bad], y[~bad])
+            diff = config_difference(truth[part][~bad], y[~bad])
             spread = np.sqrt(np.mean(diff**2, axis=0))
             sigma = self._sigma(start, y, bad, spread)
             seen = truth[part] + self.rng.normal(0, self.obs_sigma, y.shape)
-            d = _config_difference(seen[:, None], y[None]) / sigma
-            log_w = -0.5 * np.sum(d**2, axis=-1)
+            d = config_difference(seen[:, None], y[None]) / sigma
+            log_w = self._log_lik(d)
             log_w[:, failed[part]] = -np.inf
             log_w[bad] = 0.0  # a failed push leaves the weights as they were
             w = np.exp(log_w - log_w.max(axis=1, keepdims=True))
@@ -304,14 +329,14 @@ class InfoSeekingPolicy:
         self.rng = np.random.default_rng([seed, 37])
 
     def act(self, start: np.ndarray) -> np.ndarray:
-        n = self.filter.config.candidates
+        n = self.filter.candidates
         candidates = self.rng.uniform(-1, 1, size=(n, 2))
         candidates[:, 0] *= self.filter.config.max_push
         scores = self.filter.expected_variance(start, candidates)
         return candidates[int(np.argmin(scores))]
 
 
-def _config_difference(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def config_difference(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """a - b for configurations, angles wrapped."""
     d = np.asarray(a, float) - np.asarray(b, float)
     d[..., 2:] = wrap_angle(d[..., 2:])
@@ -354,14 +379,21 @@ def run_bayes_episode(
     uniform random). Returns the truth, the posterior after each push and the failure."""
     obs, info = env.reset(seed=seed)
     d = env.physics.obs_dim
-    result = {"truth": info["mass_distribution"], "posteriors": [], "failure": info["failure"]}
+    result = {"truth": info["mass_distribution"], "posteriors": [], "actions": [],
+              "failure": info["failure"]}  # fmt: skip
     if info["failure"] is not None:
         return result
     filt.reset(obs[d:])
     rng = np.random.default_rng([seed, 1])  # the paper's random policy's stream
     start = obs[:d].astype(float)
     for _ in range(pushes):
-        action = rng.uniform(-1, 1, 2) if policy is None else policy.act(start)
+        if policy is None:
+            # Random pushes over the same range as the information-seeking candidates, so
+            # the two differ only in how a push is chosen.
+            action = rng.uniform(-1, 1, 2) * (filt.config.max_push, 1.0)
+        else:
+            action = policy.act(start)
+        result["actions"].append(np.asarray(action, float))
         obs, _, done, _, info = env.step(np.asarray(action, np.float32))
         if info["failure"] is not None:
             result["failure"] = info["failure"]
@@ -381,9 +413,28 @@ command is not the push the stiff model simulates; below ~0.5 m/s the arm and th
 pusher leave a chain at nearly the same rest pose, at 1.6 m/s already 0.3-0.6 rad apart in
 yaw (docs/bayes.md)."""
 
+ARM_SURROGATE: dict[str, dict[str, float]] = {"kuka": {"push_speed_max": 3.0}}
+"""Where an arm pushes, the filter simulates a stiff pusher that reproduces the arm's pushes
+best: the KR 5 moves a chain as a stiff pusher at 0.6 of the commanded speed would (its
+operational-space controller lags the commanded velocity during the short contact). Fitted
+by `scripts/fit_arm_surrogate.py` over speed scale, hold and ramp time (docs/bayes.md)."""
+
 BAYES_MODELS = {"bayes": True, "bayes-random": False}
 """Model names `masspush evaluate` accepts for the filter: with information-seeking pushes,
 or with the paper's random pushes."""
+
+
+def filter_for(
+    setting, pusher: str | None = None, config: BayesConfig | None = None, seed: int = 0
+) -> ParticleFilter:
+    """The particle filter for chains of `setting` pushed by `pusher` (the setting's by
+    default): it simulates the stiff pusher, as the arm's surrogate where an arm pushes, and
+    by default keeps an arm's pushes to `ARM_MAX_PUSH`."""
+    pusher = pusher or setting.pusher
+    if config is None and pusher != "stiff":
+        config = BayesConfig(max_push=ARM_MAX_PUSH)
+    physics = replace(setting.physics(), **ARM_SURROGATE.get(pusher, {}))
+    return ParticleFilter(EnvConfig(physics=physics, pusher="stiff"), config, seed=seed)
 
 
 def evaluate_bayes(
@@ -413,9 +464,7 @@ def evaluate_bayes(
     pusher = pusher or setting.pusher
     env_config = EnvConfig(physics=setting.physics(), pusher=pusher)
     env = ChainEnv.from_config(env_config)
-    if config is None and pusher != "stiff":
-        config = BayesConfig(max_push=ARM_MAX_PUSH)
-    filt = ParticleFilter(EnvConfig(physics=setting.physics(), pusher="stiff"), config, seed=seed)
+    filt = filter_for(setting, pusher, config, seed)
     policy = InfoSeekingPolicy(filt, seed) if BAYES_MODELS[model] else None
     k = env_config.pushes
     estimates, truths, inside, failures, unexplained = [], [], [], 0, 0
