@@ -47,6 +47,20 @@ def test_a_settings_file_may_choose_the_pusher(tmp_path):
     assert (get_setting("a", path).pusher, get_setting("b", path).pusher) == ("kuka", "ur10")
 
 
+def test_a_setting_may_choose_its_pushes_per_episode(tmp_path):
+    assert get_setting("2link-0.1-1").env_config().pushes == 2  # the paper's K
+    assert get_setting("3link-1-10").env_config().pushes == 3
+    four = get_setting("real-ur10-4push")
+    assert (four.env_config().pushes, four.env_config().pusher, four.mass_range) == (
+        4, "ur10", get_setting("real-ur10").mass_range
+    )  # fmt: skip
+    assert four.env_config("stiff", obs_noise=0.0).pusher == "stiff"
+    assert four.as_dict()["pushes"] == 4 and "pushes" not in get_setting("real-ur10").as_dict()
+    path = tmp_path / "s.toml"
+    path.write_text("[a]\nlinks = 3\nmass_range = [1.0, 2.0]\npushes = 5\n")
+    assert get_setting("a", path).env_config().pushes == 5
+
+
 def test_unknown_setting_lists_the_known_ones():
     with pytest.raises(ValueError, match=r"2link-0\.1-1"):
         get_setting("2link")
@@ -76,6 +90,7 @@ def test_custom_settings_from_a_toml_file(tmp_path):
         ("[bad]\nlinks = 2\nmass_range = [1.0, 2.0]\nfriction = 3\n", "unknown parameter"),
         ("[bad\n", "not valid TOML"),
         ("[bad]\nlinks = 2\nmass_range = [1.0, 2.0]\npusher = 'panda'\n", "unknown pusher"),
+        ("[bad]\nlinks = 2\nmass_range = [1.0, 2.0]\npushes = 0\n", "pushes"),
     ],
 )
 def test_invalid_settings_files_are_refused_with_the_reason(tmp_path, text, message):

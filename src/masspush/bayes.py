@@ -462,7 +462,7 @@ def evaluate_bayes(
     if model not in BAYES_MODELS:
         raise ValueError(f"unknown Bayesian model {model!r}; known: {list(BAYES_MODELS)}")
     pusher = pusher or setting.pusher
-    env_config = EnvConfig(physics=setting.physics(), pusher=pusher)
+    env_config = setting.env_config(pusher)
     env = ChainEnv.from_config(env_config)
     filt = filter_for(setting, pusher, config, seed)
     policy = InfoSeekingPolicy(filt, seed) if BAYES_MODELS[model] else None

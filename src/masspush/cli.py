@@ -57,7 +57,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     else:
         policy, count = model_policy(meta, path), args.count or 1
         print(f"Pushes chosen by the {policy.name} policy of model {args.model!r}.")
-    pushes = setting.physics().n_links if args.pushes is None else args.pushes
+    pushes = setting.env_config().pushes if args.pushes is None else args.pushes
     recorded = []
     try:
         for i in range(count):

@@ -139,7 +139,7 @@ def collect(
         policy = POLICIES[policy]()
     root = Path(out)
     root.mkdir(parents=True, exist_ok=True)
-    env_config = env_config or EnvConfig(physics=setting.physics(), pusher=pusher)
+    env_config = env_config or setting.env_config(pusher)
     manifest = Manifest(
         schema_version=SCHEMA_VERSION,
         setting=setting.as_dict(),

@@ -12,7 +12,6 @@ from typing import Any
 
 import numpy as np
 
-from masspush.config import EnvConfig
 from masspush.metrics import all_metrics, percentage_error
 from masspush.predictor import load_model
 from masspush.rollout import EVAL, POLICIES, run_episodes
@@ -78,7 +77,7 @@ def evaluate(
     predictor, meta = load_model(path, setting=spec.name, pusher=pusher)
     pusher = pusher or meta.get("pusher", "stiff")
     policy = model_policy(meta, path)
-    env_config = EnvConfig(physics=spec.physics(), pusher=pusher)
+    env_config = spec.env_config(pusher)
     run = run_episodes(env_config, policy, np.arange(episodes), EVAL, seed, workers)
     good = run.select(run.ok)
     if len(good) == 0:

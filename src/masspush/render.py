@@ -19,7 +19,6 @@ import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
 from masspush.chain import link_poses
-from masspush.config import EnvConfig
 from masspush.env import ChainEnv
 from masspush.settings import get_setting
 
@@ -111,7 +110,7 @@ def render_episode(
     spec = get_setting(setting)
     out.parent.mkdir(parents=True, exist_ok=True)
     # The setting's own physics, so that a replay of an episode (seed, actions) is that episode.
-    env = ChainEnv.from_config(EnvConfig(physics=spec.physics(), pusher=pusher))
+    env = ChainEnv.from_config(spec.env_config(pusher))
     env.reset(seed=seed)
     rng = np.random.default_rng(seed)
     recorder = _Recorder(env, width, height, pusher)

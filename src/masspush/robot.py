@@ -72,15 +72,12 @@ class SimRobot:
         seed: int = 0,
         masses: tuple[float, ...] | None = None,
     ):
-        from masspush.config import EnvConfig
         from masspush.env import ChainEnv
         from masspush.settings import get_setting
 
         self.setting = get_setting(setting) if isinstance(setting, str) else setting
         self.pusher = pusher or self.setting.pusher
-        self.env = ChainEnv.from_config(
-            EnvConfig(physics=self.setting.physics(), pusher=self.pusher)
-        )
+        self.env = ChainEnv.from_config(self.setting.env_config(self.pusher))
         self.n_links = self.setting.n_links
         self.seed = seed
         self.options = None if masses is None else {"masses": list(masses)}

@@ -68,6 +68,7 @@ def record_arm(
 
     setting = get_setting(config.setting)
     wanted = config.episodes_per_class * len(PAPER_CLASSES)
+    pushes = setting.env_config().pushes
     counts = path.with_suffix(".failures.json")
     if path.exists() and counts.exists():
         recording = read_recording(path)
@@ -93,7 +94,7 @@ def record_arm(
         )
         got = 0
         while got < config.episodes_per_class:
-            episode = run_estimation(robot, predictor, policy, setting.n_links, seed=robot.seed)
+            episode = run_estimation(robot, predictor, policy, pushes, seed=robot.seed)
             if episode.failure is not None:
                 failures[episode.failure] = failures.get(episode.failure, 0) + 1
             if not episode.estimates:

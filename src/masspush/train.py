@@ -24,7 +24,6 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from masspush.config import EnvConfig
 from masspush.dataset import code_version, collect, load_dataset
 from masspush.evaluate import evaluate
 from masspush.policy import LearnedPolicy, PolicyConfig, strip_policy, train_policy
@@ -89,7 +88,7 @@ class Recipe:
         self.setting, self.pusher, self.config = setting, pusher, config
         self.dir = Path(run_dir)
         self.log, self.progress = log, progress
-        self.env_config = EnvConfig(physics=setting.physics(), pusher=pusher)
+        self.env_config = setting.env_config(pusher)
         self.state_path = self.dir / "state.json"
 
     # --- state ------------------------------------------------------------------------

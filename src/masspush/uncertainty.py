@@ -176,14 +176,13 @@ def calibrate(
     workers: int | None = None,
 ) -> dict[str, Any]:
     """Fit and save a model's Dirichlet head on fresh episodes of its policy."""
-    from masspush.config import EnvConfig
     from masspush.evaluate import model_policy, resolve_model
     from masspush.predictor import load_model
     from masspush.rollout import TRAIN, run_episodes
 
     path = resolve_model(model, setting.name)
     predictor, meta = load_model(path, setting.name)
-    env_config = EnvConfig(physics=setting.physics(), pusher=meta.get("pusher", "stiff"))
+    env_config = setting.env_config(meta.get("pusher", "stiff"))
     # Base seed 7919: a stream the recipes' collections (base seeds 0-99) never use.
     run = run_episodes(
         env_config, model_policy(meta, path), np.arange(config.episodes), TRAIN, 7919, workers
