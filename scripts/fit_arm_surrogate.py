@@ -20,15 +20,12 @@ from tqdm import tqdm
 from masspush.batch import ChainBatch
 from masspush.bayes import ARM_MAX_PUSH, config_difference
 from masspush.chain import ChainParams
-from masspush.config import EnvConfig
 from masspush.env import ChainEnv
 from masspush.settings import get_setting
 
 
 def arm_pushes(setting, arm: str, pushes: int, max_push: float, seed: int = 0) -> list[tuple]:
-    env = ChainEnv.from_config(
-        EnvConfig(physics=setting.physics(), pusher=arm, obs_noise=0, action_noise=0)
-    )
+    env = ChainEnv.from_config(setting.env_config(arm, obs_noise=0, action_noise=0))
     rng = np.random.default_rng(seed)
     rows = []
     for i in tqdm(range(pushes), desc=f"{arm} pushes"):
@@ -74,11 +71,10 @@ def main() -> None:
     print("|---|---|---|---|---|---|")
     grid = itertools.product(*(map(float, v.split(",")) for v in (args.scales, args.holds,
                                                                    args.ramps)))  # fmt: skip
+    base = setting.physics()
     for scale, hold, ramp in grid:
-        physics = replace(
-            setting.physics(), push_speed_max=scale * setting.physics().push_speed_max,
-            push_hold_time=hold, push_ramp_time=ramp,
-        )  # fmt: skip
+        physics = replace(base, push_speed_max=scale * base.push_speed_max,
+                          push_hold_time=hold, push_ramp_time=ramp)  # fmt: skip
         rms, median, ok = stiff_difference(physics, rows)
         print(f"| {scale} | {hold} | {ramp} | {np.round(rms, 3).tolist()} "
               f"| {np.round(median, 3).tolist()} | {ok:.2f} |", flush=True)  # fmt: skip

@@ -280,12 +280,11 @@ def pushers_table(results: list[PusherBenchmark]) -> str:
 
 def bench_data(setting: str, pusher: str, episodes: int, workers: int | None = None) -> dict:
     """Episodes per second collected with every core (the collection engine, no disk)."""
-    from masspush.config import EnvConfig
     from masspush.rollout import TRAIN, RandomPolicy, run_episodes
     from masspush.settings import get_setting
 
     spec = get_setting(setting)
-    config = EnvConfig(physics=spec.physics(), pusher=pusher)
+    config = spec.env_config(pusher)
     t0 = time.perf_counter()
     run = run_episodes(config, RandomPolicy(), np.arange(episodes), TRAIN, 12345, workers)
     elapsed = time.perf_counter() - t0
@@ -306,15 +305,12 @@ def bench_train(
     """Training samples per second: the paper's SGD (batch 16) and the fast Adam (batch 256)."""
     import tempfile
 
-    from masspush.config import EnvConfig
     from masspush.predictor import FAST, TrainConfig, train_predictor
     from masspush.rollout import TRAIN, RandomPolicy, run_batch
     from masspush.settings import get_setting
 
     spec = get_setting(setting)
-    data = run_batch(
-        EnvConfig(physics=spec.physics()), RandomPolicy(), np.arange(episodes), TRAIN, 0
-    )
+    data = run_batch(spec.env_config("stiff"), RandomPolicy(), np.arange(episodes), TRAIN, 0)
     rows = []
     for name, config in (("paper SGD, batch 16", TrainConfig()), ("fast Adam, batch 256", FAST)):
         config = replace(config, steps=steps, eval_every=steps, checkpoint_every=steps)
@@ -344,14 +340,13 @@ def bench_ppo(
     learner and number of environments, against the setting's shipped RP predictor."""
     import tempfile
 
-    from masspush.config import EnvConfig
     from masspush.evaluate import resolve_model
     from masspush.policy import PolicyConfig, train_policy
     from masspush.settings import get_setting
 
     spec = get_setting(setting)
     pusher = pusher or spec.pusher
-    config = EnvConfig(physics=spec.physics(), pusher=pusher)
+    config = spec.env_config(pusher)
     predictor = resolve_model("rp", spec.name)
     rows = []
     for algo in algos:
