@@ -1,9 +1,11 @@
 import warnings
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from masspush.bayes import (
+    ARM_LIKELIHOOD_POWER,
     ARM_MAX_PUSH,
     ARM_SURROGATE,
     BayesConfig,
@@ -12,6 +14,7 @@ from masspush.bayes import (
     UnexplainedObservationWarning,
     _reflect,
     chi2_quantile,
+    config_difference,
     evaluate_bayes,
     filter_for,
     run_bayes_episode,
@@ -120,7 +123,9 @@ def test_where_an_arm_pushes_the_filter_simulates_its_surrogate():
     filt = filter_for(setting)
     assert filt.physics.push_speed_max == ARM_SURROGATE["kuka"]["push_speed_max"]
     assert filt.config.max_push == ARM_MAX_PUSH and filt.env.pusher == "stiff"
-    assert filter_for(setting, pusher="stiff").physics == setting.physics()
+    assert filt.likelihood_power == ARM_LIKELIHOOD_POWER < 1
+    stiff = filter_for(setting, pusher="stiff")
+    assert stiff.physics == replace(setting.physics(), settle_time_cap=stiff.config.settle_cap)
 
 
 def test_random_pushes_keep_to_the_filter_s_push_range():
@@ -132,6 +137,30 @@ def test_random_pushes_keep_to_the_filter_s_push_range():
     assert np.abs(actions[:, 1]).max() > 0.1  # the contact point still spans the links
 
 
+def test_a_chain_still_creeping_at_the_settle_cap_is_taken_where_it_is():
+    short = ParticleFilter(env_config(), BayesConfig(particles=8, settle_cap=0.02), seed=0)
+    full = ParticleFilter(env_config(), BayesConfig(particles=8, settle_cap=10.0), seed=0)
+    assert short.physics.settle_time_cap == 0.02 and full.physics.settle_time_cap == 10.0
+    obs, _ = ChainEnv.from_config(env_config(0.0)).reset(seed=0)
+    d = SETTING.physics().obs_dim
+    for filt in (short, full):
+        filt.reset(obs[d:])
+    start = obs[:d].astype(float)
+    actions = np.tile([[0.5, 0.5]], (8, 1))  # 2.5 m/s: the chain slides on for > 0.1 s
+    masses, friction = full.masses, full.friction
+    cut, cut_failed = short.simulate(start, actions, masses, friction)
+    rest, rest_failed = full.simulate(start, actions, masses, friction)
+    assert not cut_failed.any() and not rest_failed.any()
+    assert np.abs(config_difference(cut, rest)).max() > 0.01  # stopped mid-slide, not failed
+
+
+def test_a_power_below_one_flattens_the_likelihood():
+    residual = np.array([[0.5, 1.0], [2.0, 3.0]])
+    full = ParticleFilter(env_config(), BayesConfig(particles=8, likelihood_power=1.0))
+    half = ParticleFilter(env_config(), BayesConfig(particles=8, likelihood_power=0.5))
+    np.testing.assert_allclose(half._log_lik(residual), 0.5 * full._log_lik(residual))
+
+
 def test_bad_configs_are_refused():
     with pytest.raises(ValueError, match="particles"):
         BayesConfig(particles=2)
@@ -139,6 +168,10 @@ def test_bad_configs_are_refused():
         BayesConfig(credible=1.5)
     with pytest.raises(ValueError, match="tail_dof"):
         BayesConfig(tail_dof=0)
+    with pytest.raises(ValueError, match="likelihood_power"):
+        BayesConfig(likelihood_power=1.5)
+    with pytest.raises(ValueError, match="settle_cap"):
+        BayesConfig(settle_cap=0)
 
 
 def test_evaluate_scores_the_filter_with_coverage_and_time(monkeypatch):
@@ -160,11 +193,12 @@ def test_information_seeking_beats_random_pushes_and_intervals_cover():
 
 
 def test_longer_chains_get_a_wider_likelihood_and_fewer_candidates_by_default():
-    seen, slack = {}, {}
+    seen, slack, power = {}, {}, {}
     for links in (2, 3):
         cfg = EnvConfig(physics=get_setting(f"{links}link-1-10").physics(), pusher="stiff")
         filt = ParticleFilter(cfg, BayesConfig(particles=16, lookahead_particles=4))
         slack[links] = filt.motion_slack
+        power[links] = filt.likelihood_power
 
         def record(start, actions, n=links):
             seen[n] = len(actions)
@@ -172,4 +206,4 @@ def test_longer_chains_get_a_wider_likelihood_and_fewer_candidates_by_default():
 
         filt.expected_variance = record
         InfoSeekingPolicy(filt).act(np.zeros(cfg.physics.obs_dim))
-    assert seen == {2: 8, 3: 6} and slack == {2: 0.05, 3: 0.1}
+    assert seen == {2: 8, 3: 6} and slack == {2: 0.05, 3: 0.1} and power == {2: 1.0, 3: 0.6}

@@ -1,12 +1,14 @@
+import masspush.bayes_table as bayes_table_module
 import masspush.evaluate as evaluate_module
-from masspush.bayes_table import bayes_table
+from masspush.bayes_table import bayes_table, filter_settings
 
 
 def fake_evaluate(calls):
     def evaluate(setting, model, episodes, seed=0):
         calls.append((setting, model, episodes))
         return {"percentage_error": 3.0 if model == "bayes" else 5.0, "coverage": 0.9,
-                "seconds_per_episode": 4.2, "episodes": episodes}  # fmt: skip
+                "seconds_per_episode": 4.2, "episodes": episodes,
+                "filter": filter_settings(setting)}  # fmt: skip
 
     return evaluate
 
@@ -23,6 +25,12 @@ def test_measurements_are_cached_and_the_table_built_from_them(tmp_path, monkeyp
     assert len(calls) == 3
     bayes_table(["2link-1-10"], 8, ["bayes"], root=tmp_path)  # another size: measured again
     assert calls[-1] == ("2link-1-10", "bayes", 8)
+    # The filter's configuration changed since: the Bayesian cells are measured again.
+    changed = {**filter_settings("2link-1-10"), "particles": 1}
+    monkeypatch.setattr(bayes_table_module, "filter_settings", lambda setting: changed)
+    before = len(calls)
+    bayes_table(["2link-1-10"], 8, root=tmp_path, tp_episodes=9)
+    assert calls[before:] == [("2link-1-10", "bayes", 8), ("2link-1-10", "bayes-random", 8)]
     assert (tmp_path / "results" / "bayes.md").read_text().count("| 2link-1-10 |") == 1
 
 

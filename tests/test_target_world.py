@@ -26,6 +26,11 @@ def test_the_model_differs_from_training_as_configured():
     np.testing.assert_allclose(m.geom_solref[r._boxes], [[0.01, 0.8]] * 2)
     # Geometry: the boxes are the world's size, not the training world's 4 x 3 cm.
     np.testing.assert_allclose(m.geom_size[r._boxes][:, 1:], [[0.0225, 0.0175]] * 2)
+    # The solver and cones are knobs too (the ablation script puts them back to training's).
+    r = robot(TargetWorld(solver="Newton", cone="elliptic"))
+    r.start()
+    assert r.sim.model.opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC
+    assert r.sim.model.opt.solver == mujoco.mjtSolver.mjSOL_NEWTON
 
 
 def test_each_link_feels_the_friction_of_the_table_where_it_lies():
@@ -101,8 +106,10 @@ def test_make_robot_knows_the_target_backend():
 
 
 @pytest.mark.parametrize(
-    "field, value", [("timestep", 0.0), ("obs_noise", -1.0), ("friction_range", (0.0, 1.0))]
-)
+    "field, value",
+    [("timestep", 0.0), ("obs_noise", -1.0), ("friction_range", (0.0, 1.0)),
+     ("solver", "Jacobi"), ("cone", "round")],
+)  # fmt: skip
 def test_invalid_world_parameters_are_refused(field, value):
     with pytest.raises(ValueError, match=field):
         TargetWorld(**{field: value})

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from masspush.baselines import PAPER_TABLE
+from masspush.bayes import BAYES_MODELS
 
 MODELS = ("bayes", "bayes-random", "tp+")
 
@@ -26,13 +27,24 @@ def measure(
     path = Path(root) / "results" / "bayes" / f"{setting}-{model}.json"
     if path.exists():
         cached = json.loads(path.read_text())
-        if cached.get("requested_episodes") == episodes:
+        if cached.get("requested_episodes") == episodes and (
+            model not in BAYES_MODELS or cached.get("filter") == filter_settings(setting)
+        ):
             return cached
     result = evaluate(setting, model, episodes=episodes, seed=seed)
     result["requested_episodes"] = episodes
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(result, indent=2) + "\n")
     return result
+
+
+def filter_settings(setting: str) -> dict[str, Any]:
+    """The particle filter's configuration for `setting` as `evaluate` would run it, as it
+    reads back from JSON: a cached measurement with another one is measured again."""
+    from masspush.bayes import filter_for
+    from masspush.settings import get_setting
+
+    return json.loads(json.dumps(filter_for(get_setting(setting)).settings()))
 
 
 def table_markdown(rows: list[dict[str, Any]]) -> str:

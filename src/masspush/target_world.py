@@ -36,6 +36,10 @@ from masspush.pusher import make_pusher
 from masspush.robot import PushReport, RestPose
 from masspush.simulate import ChainSim
 
+SOLVERS = {"CG": mujoco.mjtSolver.mjSOL_CG, "Newton": mujoco.mjtSolver.mjSOL_NEWTON,
+           "PGS": mujoco.mjtSolver.mjSOL_PGS}  # fmt: skip
+CONES = {"pyramidal": mujoco.mjtCone.mjCONE_PYRAMIDAL, "elliptic": mujoco.mjtCone.mjCONE_ELLIPTIC}
+
 
 @dataclass(frozen=True)
 class TargetWorld:
@@ -44,8 +48,12 @@ class TargetWorld:
     # --- contact and solver -------------------------------------------------------------
     timestep: float = 0.0005
     """Physics step, s (training: 0.001)."""
+    solver: str = "CG"
+    """MuJoCo's constraint solver: "CG", "Newton" or "PGS" (training: "Newton")."""
     solver_iterations: int = 20
-    """CG solver iterations (training: Newton, 100)."""
+    """Solver iterations (training: 100)."""
+    cone: str = "pyramidal"
+    """Friction cones: "pyramidal" or "elliptic" (training: "elliptic")."""
     contact_solref: tuple[float, float] = (0.01, 0.8)
     """Time constant and damping ratio of every link contact (training: MuJoCo's 0.02, 1)."""
     contact_solimp: tuple[float, float, float] = (0.8, 0.95, 0.002)
@@ -92,6 +100,10 @@ class TargetWorld:
         ):  # fmt: skip
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+        if self.solver not in SOLVERS:
+            raise ValueError(f"solver must be one of {list(SOLVERS)}, got {self.solver!r}")
+        if self.cone not in CONES:
+            raise ValueError(f"cone must be one of {list(CONES)}, got {self.cone!r}")
         if self.solver_iterations < 1 or self.friction_waves < 1:
             raise ValueError("solver_iterations and friction_waves must be >= 1")
         lo, hi = self.friction_range
@@ -203,8 +215,8 @@ class TargetWorldRobot:
     # --- the world's differences --------------------------------------------------------
     def _adjust(self, model: mujoco.MjModel) -> None:
         w = self.world
-        model.opt.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
-        model.opt.solver = mujoco.mjtSolver.mjSOL_CG
+        model.opt.cone = CONES[w.cone]
+        model.opt.solver = SOLVERS[w.solver]
         model.opt.iterations = w.solver_iterations
         boxes = [model.geom(f"box{i}").id for i in range(self.n_links)]
         # The links outrank the table and the tool, so their friction (the field's value
