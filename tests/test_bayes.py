@@ -179,6 +179,10 @@ def test_evaluate_scores_the_filter_with_coverage_and_time(monkeypatch):
     assert result["episodes"] + result["failures"] == 3
     assert 0 <= result["coverage"] <= 1 and result["seconds_per_episode"] > 0
     assert result["percentage_error"] < result["constant_floor"] * 2
+    tuned = evaluate_bayes(SETTING, "bayes-random", episodes=1, config=SMALL, progress=False,
+                           overrides={"likelihood_power": 0.5})  # fmt: skip
+    assert tuned["filter"]["likelihood_power"] == 0.5 and result["filter"]["likelihood_power"] == 1
+    assert tuned["filter"]["particles"] == SMALL.particles
     with pytest.raises(ValueError, match="unknown Bayesian model"):
         evaluate_bayes(SETTING, "bayes-magic", episodes=1, config=SMALL, progress=False)
 

@@ -4,7 +4,7 @@ import sys
 
 import pytest
 
-from masspush.cli import main
+from masspush.cli import bayes_options, main
 
 
 def run_cli(*args: str) -> subprocess.CompletedProcess:
@@ -58,3 +58,14 @@ def test_reproduce_table_only_writes_the_table_beside_the_papers(tmp_path, monke
     assert (tmp_path / "results" / "meta-iterations.png").stat().st_size > 0
     assert main(["train", "--setting", "4link"]) == 2
     assert "unknown setting" in capsys.readouterr().err
+
+
+def test_bayes_options_become_typed_filter_fields():
+    assert bayes_options(None) is None
+    got = bayes_options(["particles=512", "likelihood_power=0.6", "tail_dof=none"])
+    assert got == {"particles": 512, "likelihood_power": 0.6, "tail_dof": None}
+    assert isinstance(got["particles"], int)
+    with pytest.raises(SystemExit, match="KEY one of"):
+        bayes_options(["particle=5"])
+    with pytest.raises(SystemExit, match="a number"):
+        bayes_options(["particles=many"])

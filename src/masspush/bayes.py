@@ -485,12 +485,14 @@ def evaluate_bayes(
     pusher: str | None = None,
     config: BayesConfig | None = None,
     progress: bool = True,
+    overrides: dict | None = None,
 ) -> dict:
     """The filter on the same fresh episodes (EVAL seed stream) and with the same metrics
     as `masspush.evaluate.evaluate`, plus interval coverage and seconds per episode.
 
     The chains are pushed by the setting's pusher (an arm for the KUKA settings); the
-    filter's likelihood always simulates the stiff pusher, the one the batch path runs."""
+    filter's likelihood always simulates the stiff pusher, the one the batch path runs.
+    `overrides` changes fields of the filter's configuration (`filter_for`'s by default)."""
     import time
 
     from tqdm import tqdm
@@ -505,6 +507,8 @@ def evaluate_bayes(
     env_config = setting.env_config(pusher)
     env = ChainEnv.from_config(env_config)
     filt = filter_for(setting, pusher, config, seed)
+    if overrides:
+        filt = ParticleFilter(filt.env, replace(filt.config, **overrides), seed=seed)
     policy = InfoSeekingPolicy(filt, seed) if BAYES_MODELS[model] else None
     k = env_config.pushes
     estimates, truths, inside, failures, unexplained = [], [], [], 0, 0

@@ -7,6 +7,7 @@ import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -436,6 +437,29 @@ def cmd_train_predictor(args: argparse.Namespace) -> int:
     return 0
 
 
+def bayes_options(pairs: list[str] | None) -> dict[str, Any] | None:
+    """KEY=VALUE pairs into BayesConfig fields: numbers as numbers, "none" as None."""
+    from dataclasses import fields
+
+    from masspush.bayes import BayesConfig
+
+    if not pairs:
+        return None
+    kinds = {f.name: str(f.type) for f in fields(BayesConfig)}
+    options: dict[str, Any] = {}
+    for pair in pairs:
+        key, sep, text = pair.partition("=")
+        if not sep or key not in kinds:
+            raise SystemExit(f"--bayes wants KEY=VALUE, KEY one of {sorted(kinds)}; got {pair!r}")
+        try:
+            value = None if text.lower() == "none" else float(text)
+        except ValueError:
+            raise SystemExit(f"--bayes {key} wants a number or none, got {text!r}") from None
+        integer = kinds[key].startswith("int") and value is not None
+        options[key] = int(value) if integer else value
+    return options
+
+
 def cmd_evaluate(args: argparse.Namespace) -> int:
     from masspush.evaluate import evaluate
 
@@ -447,6 +471,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         pusher=args.pusher,
         settings_file=args.settings_file,
         workers=args.workers,
+        bayes=bayes_options(args.bayes),
     )
     if args.json:
         print(json.dumps(result))
@@ -660,6 +685,11 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--pusher", default=None, help="default: the one the model was trained with")
     ev.add_argument("--workers", type=int, default=None)
     ev.add_argument("--json", action="store_true", help="print one JSON object")
+    ev.add_argument(
+        "--bayes", action="append", metavar="KEY=VALUE",
+        help="change a BayesConfig field of the particle filter (repeatable), "
+        "e.g. --bayes likelihood_power=0.6",
+    )  # fmt: skip
     ev.set_defaults(func=cmd_evaluate)
 
     bl = sub.add_parser("baselines", help="the paper's RP and RP+ for a setting (resumable)")

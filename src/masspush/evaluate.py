@@ -63,16 +63,20 @@ def evaluate(
     pusher: str | None = None,
     settings_file: str | os.PathLike | None = None,
     workers: int | None = None,
+    bayes: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Run `episodes` fresh episodes with the model's policy and report every metric.
-    `model` "bayes" / "bayes-random" is the particle filter (`masspush.bayes`)."""
+    `model` "bayes" / "bayes-random" is the particle filter (`masspush.bayes`), its
+    configuration changed by `bayes` (BayesConfig fields) where given."""
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
     spec = setting if isinstance(setting, Setting) else get_setting(setting, settings_file)
     from masspush.bayes import BAYES_MODELS, evaluate_bayes
 
     if str(model) in BAYES_MODELS:
-        return evaluate_bayes(spec, str(model), episodes, seed, pusher)
+        return evaluate_bayes(spec, str(model), episodes, seed, pusher, overrides=bayes)
+    if bayes:
+        raise ValueError(f"bayes options apply to the particle filter, not to {model!r}")
     path = resolve_model(model, spec.name)
     predictor, meta = load_model(path, setting=spec.name, pusher=pusher)
     pusher = pusher or meta.get("pusher", "stiff")
