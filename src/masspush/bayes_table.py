@@ -13,7 +13,8 @@ from pathlib import Path
 from typing import Any
 
 from masspush.baselines import PAPER_TABLE
-from masspush.bayes import BAYES_MODELS
+from masspush.bayes import BAYES_MODELS, filter_for
+from masspush.settings import get_setting
 
 MODELS = ("bayes", "bayes-random", "tp+")
 
@@ -41,9 +42,6 @@ def measure(
 def filter_settings(setting: str) -> dict[str, Any]:
     """The particle filter's configuration for `setting` as `evaluate` would run it, as it
     reads back from JSON: a cached measurement with another one is measured again."""
-    from masspush.bayes import filter_for
-    from masspush.settings import get_setting
-
     return json.loads(json.dumps(filter_for(get_setting(setting)).settings()))
 
 
