@@ -69,3 +69,11 @@ def test_bayes_options_become_typed_filter_fields():
         bayes_options(["particle=5"])
     with pytest.raises(SystemExit, match="a number"):
         bayes_options(["particles=many"])
+
+
+def test_randomise_collects_fine_tunes_and_names_the_result(tmp_path, capsys):
+    out = tmp_path / "dr"
+    args = ["randomise", "--setting", "2link-1-10", "--episodes", "3", "--steps", "2"]
+    assert main([*args, "--workers", "1", "--out", str(out)]) == 0
+    assert f"randomised predictor: {out / 'predictor' / 'predictor.pt'}" in capsys.readouterr().out
+    assert len(list(out.glob("shard-*.npz"))) == 1

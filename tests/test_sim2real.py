@@ -70,3 +70,21 @@ def test_the_control_runs_in_the_training_world(tmp_path):
     assert read_recording(tmp_path / "learned.jsonl").robot == "masspush training world"
     with pytest.raises(ValueError, match="world must be one of"):
         Sim2RealConfig(world="moon")
+
+
+def test_another_model_for_an_arm_records_anew_and_is_named(run, tmp_path):
+    import shutil
+    from dataclasses import replace
+
+    done, _ = run
+    out = tmp_path
+    for name in ("random.jsonl", "random.failures.json", "learned.jsonl", "learned.failures.json"):
+        shutil.copy(done / name, out / name)
+    other = replace(CONFIG, models={"random": "rp", "learned": "tp"})
+    again = run_sim2real(other, out, progress=False)
+    assert again["arms"]["learned"]["reused"] is False
+    assert again["arms"]["learned"]["model"] == "tp"
+    assert again["arms"]["random"]["reused"] is True
+    assert read_recording(out / "learned.jsonl").robot == "masspush target world, tp"
+    with pytest.raises(ValueError, match="one model for each"):
+        replace(CONFIG, models={"learned": "tp+"})

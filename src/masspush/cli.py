@@ -187,10 +187,28 @@ def cmd_sim2real(args: argparse.Namespace) -> int:
         seed=args.seed,
         world=args.world,
         classifier=ClassifierConfig(folds=args.folds, seed=args.seed),
+        models={"random": args.random_model, "learned": args.learned_model},
     )
     run_sim2real(config, args.out)
     print((Path(args.out) / "summary.md").read_text(), end="")
     print(f"recordings and summary in {args.out}")
+    return 0
+
+
+def cmd_randomise(args: argparse.Namespace) -> int:
+    """Domain randomisation: fine-tune a predictor on episodes from randomised worlds."""
+    from masspush.randomise import RandomiseConfig, randomise
+
+    config = RandomiseConfig(
+        setting=args.setting,
+        model=args.model,
+        episodes=args.episodes,
+        steps=args.steps,
+        base_seed=args.seed,
+    )
+    out = args.out or f"runs/randomise-{args.setting}"
+    path = randomise(config, out, args.workers, ship=args.ship)
+    print(f"randomised predictor: {path}")
     return 0
 
 
@@ -790,7 +808,25 @@ def build_parser() -> argparse.ArgumentParser:
         choices=("target", "training"),
         help="training: the control run in the models' own world",
     )
+    s2r.add_argument("--random-model", default="rp", help="the random-push arm's model")
+    s2r.add_argument("--learned-model", default="tp+", help="the learned arm's model, e.g. tp+dr")
     s2r.set_defaults(func=cmd_sim2real)
+
+    rnd = sub.add_parser(
+        "randomise",
+        help="fine-tune a predictor on its policy's episodes in randomised worlds",
+    )
+    rnd.add_argument("--setting", default="real-ur10-4push")
+    rnd.add_argument("--model", default="tp+", help="shipped name or path of the predictor")
+    rnd.add_argument("--episodes", type=int, default=8000)
+    rnd.add_argument("--steps", type=int, default=10_000, help="fine-tuning steps")
+    rnd.add_argument("--seed", type=int, default=50_000_000, help="base seed of the episodes")
+    rnd.add_argument("--workers", type=int, default=None, help="default: one per core")
+    rnd.add_argument("--out", default=None, help="default: runs/randomise-<setting>")
+    rnd.add_argument(
+        "--ship", action="store_true", help="ship the result as tp+dr beside the model"
+    )
+    rnd.set_defaults(func=cmd_randomise)
 
     cal = sub.add_parser(
         "calibrate", help="fit a model's learned uncertainty (a Dirichlet head) for intervals"

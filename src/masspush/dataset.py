@@ -177,7 +177,7 @@ def collect(
             lo = j * shard_size
             indices = np.arange(lo, lo + _shard_len(manifest, j))
             eps = run_episodes(env_config, policy, indices, TRAIN, base_seed, workers)
-            _write_shard(shard_path(root, j), eps)
+            write_shard(shard_path(root, j), eps)
             bar.update(len(indices))
     return manifest
 
@@ -191,7 +191,7 @@ def _complete(root: Path, manifest: Manifest, j: int) -> bool:
     if not path.exists():
         return False
     try:
-        return len(_read_shard(path)) == _shard_len(manifest, j)
+        return len(read_shard(path)) == _shard_len(manifest, j)
     except DatasetError:
         return False  # a damaged shard is recomputed
 
@@ -202,14 +202,14 @@ def _write_json(path: Path, data: dict) -> None:
     os.replace(tmp, path)
 
 
-def _write_shard(path: Path, eps: Episodes) -> None:
+def write_shard(path: Path, eps: Episodes) -> None:
     tmp = path.with_name(path.name + ".tmp")
     with open(tmp, "wb") as f:
         np.savez_compressed(f, **{fl.name: getattr(eps, fl.name) for fl in fields(Episodes)})
     os.replace(tmp, path)  # atomic: a shard is either whole or absent
 
 
-def _read_shard(path: Path) -> Episodes:
+def read_shard(path: Path) -> Episodes:
     try:
         with np.load(path, allow_pickle=False) as z:
             arrays = {fl.name: z[fl.name] for fl in fields(Episodes)}
@@ -242,7 +242,7 @@ def load_dataset(root: str | os.PathLike, limit: int | None = None) -> tuple[Man
                 f"{root} is incomplete: {path.name} is missing; resume the collection "
                 f"(masspush collect ... --out {root})"
             )
-        part = _read_shard(path)
+        part = read_shard(path)
         if len(part) != _shard_len(manifest, j):
             raise DatasetError(
                 f"{path} holds {len(part)} episodes, expected {_shard_len(manifest, j)}"

@@ -19,7 +19,7 @@ from masspush.settings import Setting, get_setting
 
 SHIPPED_DIR = Path(__file__).parent / "models"
 """Trained models shipped with the package: models/<setting>/<name>.pt."""
-SHIPPED_NAMES = ("rp", "rp+", "tp", "tp+")
+SHIPPED_NAMES = ("rp", "rp+", "tp", "tp+", "tp+dr")
 
 
 def resolve_model(model: str | os.PathLike, setting: str) -> Path:

@@ -29,7 +29,8 @@ from masspush.finetune import (
 PAPER_ACCURACY = {"random": 40.74, "learned": 81.4}
 """The paper's real-robot accuracies, % (chance 20 %) [paper-details.md]."""
 ARMS = {"random": "rp", "learned": "tp+"}
-"""Which shipped model each arm of the experiment uses; each brings its own policy."""
+"""Which shipped model each arm of the experiment uses by default; each brings its own
+policy. A recording names its model unless it is the default (`record_arm`)."""
 WORLDS = ("target", "training")
 
 
@@ -43,8 +44,13 @@ class Sim2RealConfig:
     """"target": the sim-to-real target world; "training": the world the models were
     trained in (the control: what the protocol gives without any gap)."""
     classifier: ClassifierConfig = field(default_factory=ClassifierConfig)
+    models: dict[str, str] = field(default_factory=lambda: dict(ARMS))
+    """Each arm's model (shipped name or path): its policy pushes, its predictor's
+    features feed the classifier."""
 
     def __post_init__(self) -> None:
+        if set(self.models) != set(ARMS):
+            raise ValueError(f"models must name one model for each of {list(ARMS)}")
         if self.world not in WORLDS:
             raise ValueError(f"world must be one of {WORLDS}, got {self.world!r}")
         if self.episodes_per_class < self.classifier.folds:
@@ -70,17 +76,17 @@ def record_arm(
     wanted = config.episodes_per_class * len(PAPER_CLASSES)
     pushes = setting.env_config().pushes
     counts = path.with_suffix(".failures.json")
+    model = config.models[arm]
+    robot_name = f"masspush {config.world} world" + ("" if model == ARMS[arm] else f", {model}")
     if path.exists() and counts.exists():
         recording = read_recording(path)
-        if len(recording.episodes) == wanted:
+        if len(recording.episodes) == wanted and recording.robot == robot_name:
             return {"episodes": wanted, "failed_pushes": json.loads(counts.read_text()),
                     "reused": True}  # fmt: skip
-    model_file = resolve_model(ARMS[arm], setting.name)
+    model_file = resolve_model(model, setting.name)
     predictor, meta = load_model(model_file, setting.name)
     policy = model_policy(meta, model_file)
-    recording = Recording(
-        n_links=setting.n_links, robot=f"masspush {config.world} world", setting=setting.name
-    )
+    recording = Recording(n_links=setting.n_links, robot=robot_name, setting=setting.name)
     failures: dict[str, int] = {}
     bar = tqdm(total=wanted, desc=f"{config.world} world, {arm} pushes", disable=not progress)
     for c, (label, masses) in enumerate(PAPER_CLASSES.items()):
@@ -120,10 +126,11 @@ def score_arm(config: Sim2RealConfig, arm: str, path: Path) -> dict[str, Any]:
     from masspush.recording import read_recording
 
     recording = read_recording(path)
-    predictor, _ = load_model(resolve_model(ARMS[arm], config.setting), config.setting)
+    model = config.models[arm]
+    predictor, _ = load_model(resolve_model(model, config.setting), config.setting)
     episodes = recording.to_episodes()
     labels, classes = labelled(recording)
-    scores: dict[str, Any] = {"model": ARMS[arm], "classes": classes}
+    scores: dict[str, Any] = {"model": model, "classes": classes}
     features = {
         kind: predictor_features(predictor, episodes, kind) for kind in ("estimate", "lstm")
     }

@@ -122,6 +122,88 @@ class TargetWorld:
         )
 
 
+@dataclass(frozen=True)
+class WorldRanges:
+    """A distribution over target worlds, for domain randomisation (`masspush.randomise`):
+    each episode draws its own `TargetWorld`. Every range holds both the training world's
+    value and the target world's, with room on either side, as a lab would pick ranges wide
+    enough for what it does not know about its own setup [ours, each]."""
+
+    timesteps: tuple[float, ...] = (0.0005, 0.001)
+    """Physics step ~ one of these, s."""
+    solvers: tuple[str, ...] = ("Newton", "CG", "PGS")
+    solver_iterations: tuple[int, int] = (10, 100)
+    cones: tuple[str, ...] = ("elliptic", "pyramidal")
+    solref_time: Range = (0.005, 0.03)
+    """Contact time constant ~ U(range), s."""
+    solref_damping: Range = (0.6, 1.2)
+    solimp_low: Range = (0.7, 0.95)
+    """The impedance's first value ~ U(range); its second stays 0.95."""
+    solimp_width: Range = (0.0005, 0.003)
+    torsional_friction: Range = (0.0, 0.02)
+    friction_range: Range = (0.3, 1.2)
+    friction_variation: Range = (0.0, 0.25)
+    link_width: Range = (0.035, 0.05)
+    link_height: Range = (0.025, 0.04)
+    com_offset: float = 0.01
+    length_error: float = 0.005
+    obs_noise: Range = (0.005, 0.02)
+    obs_bias: tuple[float, float] = (0.008, 0.03)
+    """The per-episode tracking bias's std ~ U(0, this): position (m), angles (rad)."""
+    action_noise: Range = (0.005, 0.03)
+    speed_gain: Range = (0.8, 1.2)
+    """The per-episode gain on the push speed ~ U(range)."""
+    contact_bias: float = 0.04
+    """The per-episode contact bias's std ~ U(0, this)."""
+
+    def __post_init__(self) -> None:
+        for name in ("solvers", "cones", "timesteps"):
+            if not getattr(self, name):
+                raise ValueError(f"{name} must not be empty")
+        for solver in self.solvers:
+            if solver not in SOLVERS:
+                raise ValueError(f"unknown solver {solver!r}; known: {list(SOLVERS)}")
+        for cone in self.cones:
+            if cone not in CONES:
+                raise ValueError(f"unknown cone {cone!r}; known: {list(CONES)}")
+        for name in (
+            "solver_iterations", "solref_time", "solref_damping", "solimp_low", "solimp_width",
+            "torsional_friction", "friction_range", "friction_variation", "link_width",
+            "link_height", "obs_noise", "action_noise", "speed_gain",
+        ):  # fmt: skip
+            lo, hi = getattr(self, name)
+            if not 0 <= lo <= hi:
+                raise ValueError(f"{name} must be 0 <= low <= high, got {(lo, hi)}")
+
+    def sample(self, rng: np.random.Generator) -> TargetWorld:
+        """One world of the distribution."""
+
+        def u(r: tuple[float, float]) -> float:
+            return float(rng.uniform(*r))
+
+        return TargetWorld(
+            timestep=float(rng.choice(self.timesteps)),
+            solver=str(rng.choice(self.solvers)),
+            solver_iterations=int(rng.integers(self.solver_iterations[0],
+                                               self.solver_iterations[1] + 1)),
+            cone=str(rng.choice(self.cones)),
+            contact_solref=(u(self.solref_time), u(self.solref_damping)),
+            contact_solimp=(u(self.solimp_low), 0.95, u(self.solimp_width)),
+            torsional_friction=u(self.torsional_friction),
+            friction_range=tuple(self.friction_range),
+            friction_variation=u(self.friction_variation),
+            link_width=u(self.link_width),
+            link_height=u(self.link_height),
+            com_offset=self.com_offset,
+            length_error=self.length_error,
+            obs_noise=u(self.obs_noise),
+            obs_bias=(u((0, self.obs_bias[0])), u((0, self.obs_bias[1]))),
+            action_noise=u(self.action_noise),
+            speed_gain=tuple(self.speed_gain),
+            contact_bias=u((0, self.contact_bias)),
+        )  # fmt: skip
+
+
 class FrictionField:
     """Table friction over the plane: mu(p) = mu0 (1 + variation * sum of planar waves),
     normalised so that its std over the table is `variation`, kept within mu0 * [0.5, 1.5]."""
@@ -145,12 +227,13 @@ class FrictionField:
 
 class TargetWorldRobot:
     """The target world as a robot: each `start` places a new chain of the setting (masses
-    pinned if given) in a world that differs from training (`TargetWorld`)."""
+    pinned if given) in a world that differs from training (`TargetWorld`), or in a world
+    drawn afresh from `WorldRanges` for each episode."""
 
     def __init__(
         self,
         setting,
-        world: TargetWorld | None = None,
+        world: TargetWorld | WorldRanges | None = None,
         pusher: str | None = None,
         seed: int = 0,
         masses: tuple[float, ...] | None = None,
@@ -158,7 +241,9 @@ class TargetWorldRobot:
         from masspush.settings import get_setting
 
         self.setting = get_setting(setting) if isinstance(setting, str) else setting
-        self.world = world or TargetWorld()
+        # A `WorldRanges` draws a new world at every start (domain randomisation).
+        self.ranges = world if isinstance(world, WorldRanges) else None
+        self.world = TargetWorld() if world is None or self.ranges else world
         self.physics = self.world.physics(self.setting.physics())
         self.pusher_name = pusher or self.setting.pusher
         self.n_links = self.setting.n_links
@@ -171,6 +256,9 @@ class TargetWorldRobot:
         while True:
             self.rng = np.random.default_rng([self.seed, 7])
             self.seed += 1
+            if self.ranges is not None:
+                self.world = self.ranges.sample(self.rng)
+                self.physics = self.world.physics(self.setting.physics())
             chain = sample_chain(self.physics, self.rng, self.pinned)
             self.field = FrictionField(chain.friction, self.world, self.rng)
             self._boxes: list[int] = []

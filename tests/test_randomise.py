@@ -1,0 +1,94 @@
+import json
+
+import numpy as np
+import pytest
+
+from masspush.dataset import shard_path
+from masspush.randomise import RandomiseConfig, collect_randomised, randomise, run_randomised
+from masspush.target_world import TargetWorld, TargetWorldRobot, WorldRanges
+
+SETTING = "2link-1-10"  # the stiff pusher keeps these tests fast
+TINY = RandomiseConfig(setting=SETTING, episodes=4, shard_size=2, steps=4)
+
+
+def test_each_drawn_world_lies_within_the_ranges_and_follows_the_seed():
+    ranges = WorldRanges()
+    worlds = [ranges.sample(np.random.default_rng(s)) for s in range(40)]
+    assert worlds[0] == ranges.sample(np.random.default_rng(0))
+    assert {w.solver for w in worlds} == set(ranges.solvers)
+    assert {w.cone for w in worlds} == set(ranges.cones)
+    for w in worlds:
+        assert isinstance(w, TargetWorld)
+        assert ranges.link_width[0] <= w.link_width <= ranges.link_width[1]
+        assert ranges.solver_iterations[0] <= w.solver_iterations <= ranges.solver_iterations[1]
+        assert 0 <= w.obs_bias[1] <= ranges.obs_bias[1]
+        assert w.timestep in ranges.timesteps
+
+
+@pytest.mark.parametrize(
+    "field, value, match",
+    [
+        ("solvers", ("Newton", "Euler"), "unknown solver"),
+        ("cones", (), "must not be empty"),
+        ("link_width", (0.05, 0.04), "low <= high"),
+    ],
+)
+def test_bad_ranges_are_refused(field, value, match):
+    with pytest.raises(ValueError, match=match):
+        WorldRanges(**{field: value})
+
+
+def test_the_robot_draws_a_new_world_for_each_episode():
+    robot = TargetWorldRobot(SETTING, world=WorldRanges(), seed=5)
+    seen = set()
+    for _ in range(6):
+        robot.start()
+        world = robot.world
+        # The simulation runs the drawn world, not the default target world.
+        assert robot.sim.model.opt.timestep == world.timestep
+        assert robot.physics.link_width == world.link_width
+        seen.add((world.solver, world.link_width))
+    assert len(seen) == 6
+
+
+def test_episodes_are_what_the_robot_saw_and_follow_their_index():
+    from masspush.evaluate import resolve_model
+
+    model = resolve_model("tp+", SETTING)
+    eps = run_randomised(SETTING, model, WorldRanges(), np.array([3, 4]), 11)
+    again = run_randomised(SETTING, model, WorldRanges(), np.array([4]), 11)
+    np.testing.assert_array_equal(eps.observations[1], again.observations[0])
+    assert list(eps.index) == [3, 4]
+    seen = ~np.isnan(eps.observations[:, :, 0])
+    # Observations carry the world's noise and bias; configs are the truth.
+    assert np.abs(eps.observations - eps.configs)[seen].max() > 1e-3
+    assert (eps.masses > 0).all() and eps.lengths.shape == (2, 2)
+
+
+def test_a_stopped_collection_resumes_to_the_same_episodes(tmp_path):
+    first = collect_randomised(TINY, tmp_path, workers=1, progress=False)
+    shard_path(tmp_path, 1).unlink()
+    again = collect_randomised(TINY, tmp_path, workers=1, progress=False)
+    np.testing.assert_array_equal(first.observations, again.observations)
+    assert len(again) == 4
+    with pytest.raises(ValueError, match="another randomisation"):
+        collect_randomised(
+            RandomiseConfig(setting=SETTING, episodes=4, shard_size=2, base_seed=1),
+            tmp_path, workers=1, progress=False,
+        )  # fmt: skip
+    assert json.loads((tmp_path / "randomise.json").read_text())["setting"] == SETTING
+
+
+def test_the_fine_tuned_predictor_keeps_its_policy_and_names_its_worlds(tmp_path):
+    from masspush.predictor import load_model
+
+    path = randomise(TINY, tmp_path, workers=1, progress=False)
+    _, meta = load_model(path, SETTING)
+    assert list(meta["randomised"]["ranges"]["solvers"]) == list(WorldRanges().solvers)
+    assert meta["finetuned_from"].endswith("tp+.pt")
+    assert meta["policy"] == "learned"
+    with pytest.raises(ValueError, match="needs a shipped --model"):
+        randomise(
+            RandomiseConfig(setting=SETTING, model=str(path), episodes=4, shard_size=2, steps=4),
+            tmp_path / "again", workers=1, ship=True, progress=False,
+        )  # fmt: skip
