@@ -5,9 +5,12 @@ import numpy as np
 import pytest
 
 from masspush.bayes import (
+    ARM_CONFIG,
     ARM_LIKELIHOOD_POWER,
     ARM_MAX_PUSH,
     ARM_SURROGATE,
+    SURROGATE_CONFIG,
+    SURROGATE_LIKELIHOOD_POWER,
     BayesConfig,
     InfoSeekingPolicy,
     ParticleFilter,
@@ -118,14 +121,41 @@ def test_heavy_tails_let_one_bad_component_count_less():
     assert g[1] < g[2] and t[1] > t[2]
 
 
-def test_where_an_arm_pushes_the_filter_simulates_its_surrogate():
+def test_where_an_arm_pushes_the_filter_simulates_the_arm_or_its_surrogate():
     setting = get_setting("2link-0.1-1")  # the KR 5 pushes
     filt = filter_for(setting)
-    assert filt.physics.push_speed_max == ARM_SURROGATE["kuka"]["push_speed_max"]
-    assert filt.config.max_push == ARM_MAX_PUSH and filt.env.pusher == "stiff"
-    assert filt.likelihood_power == ARM_LIKELIHOOD_POWER < 1
+    assert filt.env.pusher == "kuka" and filt.arm is not None
+    assert filt.config == replace(ARM_CONFIG, likelihood_power=ARM_LIKELIHOOD_POWER[0])
+    assert filter_for(get_setting("3link-0.1-1")).likelihood_power == ARM_LIKELIHOOD_POWER[1]
+    assert filt.settings()["simulated_pusher"] == "kuka"
+    surrogate = filter_for(setting, config=SURROGATE_CONFIG)
+    assert surrogate.physics.push_speed_max == ARM_SURROGATE["kuka"]["push_speed_max"]
+    assert surrogate.config.max_push == ARM_MAX_PUSH and surrogate.env.pusher == "stiff"
+    assert surrogate.likelihood_power == SURROGATE_LIKELIHOOD_POWER < 1
+    assert surrogate.arm is None
     stiff = filter_for(setting, pusher="stiff")
     assert stiff.physics == replace(setting.physics(), settle_time_cap=stiff.config.settle_cap)
+    with pytest.raises(ValueError, match="arm_model"):
+        BayesConfig(arm_model="puppet")
+
+
+def test_the_arm_filter_weighs_the_true_chain_highest():
+    from masspush.arm_sims import ArmScene
+
+    setting = get_setting("2link-0.1-1")
+    config = BayesConfig(particles=8, lookahead_particles=4, nthread=1)
+    filt = filter_for(setting, config=config)
+    lengths = (0.12, 0.14)
+    filt.reset(np.array(lengths))
+    truth = np.array([0.3, 0.9])
+    filt.masses[0], filt.friction[0] = truth, 0.7
+    scene = ArmScene(filt.physics, "kuka", lengths)
+    start, action = np.array([0.0, 0.0, 0.3, 0.4]), np.array([0.5, 0.6])
+    observed, failure, _ = scene.push(start, action, truth, 0.7)
+    assert failure is None
+    posterior = filt.update(start, action, observed)
+    assert np.argmax(filt.weights) == 0
+    assert np.isfinite(posterior.mean).all() and posterior.ess >= 1
 
 
 def test_random_pushes_keep_to_the_filter_s_push_range():

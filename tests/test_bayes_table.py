@@ -37,3 +37,25 @@ def test_measurements_are_cached_and_the_table_built_from_them(tmp_path, monkeyp
 def test_table_only_reports_what_is_missing(tmp_path):
     text = bayes_table(["3link-0.1-1"], 5, root=tmp_path, measure_missing=False)
     assert "| 3link-0.1-1 | not yet / 12.02 | **not yet** |" in text
+
+
+def test_a_measurement_from_before_the_arm_model_counts_only_where_it_still_holds(
+    tmp_path, monkeypatch
+):
+    import json
+
+    from masspush.bayes_table import ADDED_SETTINGS, measure
+
+    calls = []
+    monkeypatch.setattr(evaluate_module, "evaluate", fake_evaluate(calls))
+    # The stiff pusher's filter is what it was; where the KR 5 pushes, the filter now
+    # simulates it instead of its surrogate.
+    for setting, still_holds in (("2link-1-10", True), ("2link-0.1-1", False)):
+        old = {k: v for k, v in filter_settings(setting).items() if k not in ADDED_SETTINGS}
+        path = tmp_path / "results" / "bayes" / f"{setting}-bayes.json"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps({"requested_episodes": 5, "filter": old, "old": True}))
+        before = len(calls)
+        result = measure(setting, "bayes", 5, root=tmp_path)
+        assert result.get("old", False) is still_holds
+        assert len(calls) - before == (0 if still_holds else 1)

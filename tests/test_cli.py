@@ -69,6 +69,7 @@ def test_bayes_options_become_typed_filter_fields():
         bayes_options(["particle=5"])
     with pytest.raises(SystemExit, match="a number"):
         bayes_options(["particles=many"])
+    assert bayes_options(["arm_model=surrogate"]) == {"arm_model": "surrogate"}
 
 
 def test_randomise_collects_fine_tunes_and_names_the_result(tmp_path, capsys):

@@ -13,11 +13,12 @@ configuration component with scale
 the observation's noise; `spread`, how far the outcome moves when a few particles are
 pushed again from a start pose and with an action jittered by the sensing and actuation
 noise (large for pushes that make the links collide); and a slack for the rest
-(docs/bayes.md; coverage measured in docs/results.md). Where an arm pushes, the simulated
-pusher is the stiff one as the arm's fitted surrogate (`ARM_SURROGATE`).
+(docs/bayes.md; coverage measured in docs/results.md). Where an arm pushes, the filter
+simulates the arm itself, one chain at a time on every core (`masspush.arm_sims`), or
+optionally the stiff pusher fitted to it on the batch path (`ARM_SURROGATE`).
 
 The likelihood is raised to a power beta <= 1 (`likelihood_power`; a power posterior),
-below 1 where the simulator is known to be a rougher model (three or more links, an arm's
+below 1 where the simulator is known to be a rougher model (three or more links; an arm's
 surrogate), chosen for calibrated intervals on tuning episodes.
 
 Degenerate weights: when the effective sample size drops below `ess_fraction` of the
@@ -38,6 +39,7 @@ from statistics import NormalDist
 
 import numpy as np
 
+from masspush.arm_sims import ArmSimulator
 from masspush.batch import ChainBatch
 from masspush.chain import ChainParams, wrap_angle
 from masspush.config import EnvConfig
@@ -84,13 +86,19 @@ class BayesConfig:
     widens the posterior where the simulator is a misspecified model of the world
     [Gruenwald 2012; Bissiri, Holmes & Walker 2016] and keeps more particles alive. None:
     1 for two links, 0.6 for longer chains; where an arm pushes `ARM_LIKELIHOOD_POWER`
-    (each chosen on the tuning episodes, seed 1, for 90 % intervals; docs/results.md)."""
+    (through `default_config`). Each was chosen on the tuning episodes (seed 1) for 90 %
+    intervals (docs/results.md)."""
     settle_cap: float = 1.0
     """Simulated seconds a particle's chain may settle after a push before its pose is
     taken as the rest pose. The world waits for rest (up to 10 s), but after 1 s of
     settling the filter's chains are within 0.012 rad and m of their rest poses, about the
     observation noise, while a creeping few keep a batch stepping for seconds more
     (docs/bayes.md)."""
+    arm_model: str = "arm"
+    """Where an arm pushes, what the filter simulates: "arm", the arm itself under its
+    controller (`masspush.arm_sims`, one chain at a time on every core); "surrogate", the
+    stiff pusher fitted to it (`ARM_SURROGATE`) on the batch path, which holds for slow
+    pushes only (the filter's first version; docs/bayes.md)."""
     tail_dof: float | None = 4.0
     """Degrees of freedom of a Student-t likelihood per component; None: Gaussian. Heavy
     tails keep the few outcomes the model reproduces badly (an arm's contact is not the
@@ -111,6 +119,8 @@ class BayesConfig:
             raise ValueError(f"likelihood_power must be in (0, 1], got {self.likelihood_power}")
         if not self.settle_cap > 0:
             raise ValueError(f"settle_cap must be > 0 s, got {self.settle_cap!r}")
+        if self.arm_model not in ("arm", "surrogate"):
+            raise ValueError(f"arm_model must be 'arm' or 'surrogate', got {self.arm_model!r}")
         if self.motion_slack is not None and self.motion_slack < 0:
             raise ValueError(f"motion_slack must be >= 0, got {self.motion_slack}")
 
@@ -146,6 +156,9 @@ class ParticleFilter:
         self.candidates = self.config.candidates or (8 if two else 6)
         power = self.config.likelihood_power
         self.likelihood_power = (1.0 if two else 0.6) if power is None else power
+        self.arm = None
+        if env_config.pusher != "stiff":
+            self.arm = ArmSimulator(self.physics, env_config.pusher, self.config.nthread)
 
     def settings(self) -> dict:
         """The configuration as run: `BayesConfig` with its defaults resolved for this chain,
@@ -156,7 +169,13 @@ class ParticleFilter:
             "candidates": self.candidates,
             "likelihood_power": self.likelihood_power,
             "push_speed_max": self.physics.push_speed_max,
+            "simulated_pusher": self.env.pusher,
         }
+
+    def close(self) -> None:
+        """Stop the arm simulator's worker processes, if any."""
+        if self.arm is not None:
+            self.arm.close()
 
     # --- the particles --------------------------------------------------------------------
     def reset(self, lengths: np.ndarray) -> None:
@@ -201,6 +220,14 @@ class ParticleFilter:
         m = len(masses)
         starts = np.broadcast_to(np.asarray(starts, float), (m, self.physics.obs_dim))
         limit = self.physics.joint_limit - 1e-3
+        if self.arm is not None:
+            starts = starts.copy()
+            starts[:, 3:] = np.clip(starts[:, 3:], -limit, limit)
+            configs, failures = self.arm.simulate(
+                self.lengths, starts, np.asarray(actions, float), np.asarray(masses, float),
+                np.asarray(friction, float),
+            )  # fmt: skip
+            return configs, np.array([f not in (None, "timeout") for f in failures])
         chains = [
             ChainParams(
                 tuple(float(v) for v in mass),
@@ -440,41 +467,69 @@ def run_bayes_episode(
     return result
 
 
-ARM_MAX_PUSH = 0.15
-"""Where an arm pushes, the information-seeking policy keeps to |a1| <= 0.15 (0.75 m/s). The
-KR 5 under the paper's control reaches ~2.6 m/s at most (torque limits), so a faster
-command is not the push the stiff model simulates; below ~0.5 m/s the arm and the stiff
-pusher leave a chain at nearly the same rest pose, at 1.6 m/s already 0.3-0.6 rad apart in
-yaw (docs/bayes.md)."""
+ARM_CONFIG = BayesConfig(particles=128, lookahead_particles=16, candidates=4)
+"""Where an arm pushes and the filter simulates it: an arm push costs ~25 ms of one core
+against ~0.3 ms on the batch path, so fewer particles, lookahead particles and candidates
+keep an episode within 10 s on two cores (docs/results.md) [ours]."""
 
-ARM_LIKELIHOOD_POWER = 0.35
-"""Where an arm pushes, the surrogate is the filter's model of a push it does not simulate:
-the likelihood counts for less. 0.35 gave 90 % coverage on the tuning episodes of
-2link-0.1-1 (seed 1; 77 % with 1; the error unchanged, docs/results.md)."""
+ARM_LIKELIHOOD_POWER = (0.6, 0.35)
+"""The likelihood power where the filter simulates an arm: two links, three or more. The
+arm's contact makes outcomes less predictable than the stiff pusher's; on the tuning
+episodes (seed 1, 40 each) 1 covered 82 % with two links and 0.6 covered 81 % with three;
+0.6 and 0.35 covered 92 % and 88 %, and cost no accuracy (docs/results.md) [ours]."""
+
+ARM_MAX_PUSH = 0.15
+"""With `arm_model="surrogate"`, the information-seeking policy keeps to |a1| <= 0.15
+(0.75 m/s). The KR 5 under the paper's control reaches ~2.6 m/s at most (torque limits), so
+a faster command is not the push the stiff model simulates; below ~0.5 m/s the arm and the
+stiff pusher leave a chain at nearly the same rest pose, at 1.6 m/s already 0.3-0.6 rad
+apart in yaw (docs/bayes.md)."""
+
+SURROGATE_LIKELIHOOD_POWER = 0.35
+"""With `arm_model="surrogate"`, the surrogate is the filter's model of a push it does not
+simulate: the likelihood counts for less. 0.35 gave 90 % coverage on the tuning episodes
+of 2link-0.1-1 (seed 1; 77 % with 1; the error unchanged, docs/results.md)."""
+
+SURROGATE_CONFIG = BayesConfig(
+    arm_model="surrogate", max_push=ARM_MAX_PUSH, likelihood_power=SURROGATE_LIKELIHOOD_POWER
+)
+"""The filter's first version where an arm pushes: the stiff surrogate on the batch path."""
 
 ARM_SURROGATE: dict[str, dict[str, float]] = {"kuka": {"push_speed_max": 3.0}}
-"""Where an arm pushes, the filter simulates a stiff pusher that reproduces the arm's pushes
-best: the KR 5 moves a chain as a stiff pusher at 0.6 of the commanded speed would (its
-operational-space controller lags the commanded velocity during the short contact). Fitted
-by `scripts/fit_arm_surrogate.py` over speed scale, hold and ramp time (docs/bayes.md)."""
+"""With `arm_model="surrogate"`, the filter simulates a stiff pusher that reproduces the
+arm's pushes best: the KR 5 moves a chain as a stiff pusher at 0.6 of the commanded speed
+would (its operational-space controller lags the commanded velocity during the short
+contact). Fitted by `scripts/fit_arm_surrogate.py` over speed scale, hold and ramp time
+(docs/bayes.md)."""
 
 BAYES_MODELS = {"bayes": True, "bayes-random": False}
 """Model names `masspush evaluate` accepts for the filter: with information-seeking pushes,
 or with the paper's random pushes."""
 
 
+def default_config(setting, pusher: str | None = None) -> BayesConfig:
+    """The filter's configuration for chains of `setting` pushed by `pusher` (the
+    setting's by default): `ARM_CONFIG` with `ARM_LIKELIHOOD_POWER` where an arm pushes,
+    else `BayesConfig()`."""
+    if (pusher or setting.pusher) == "stiff":
+        return BayesConfig()
+    power = ARM_LIKELIHOOD_POWER[0 if setting.n_links == 2 else 1]
+    return replace(ARM_CONFIG, likelihood_power=power)
+
+
 def filter_for(
     setting, pusher: str | None = None, config: BayesConfig | None = None, seed: int = 0
 ) -> ParticleFilter:
     """The particle filter for chains of `setting` pushed by `pusher` (the setting's by
-    default): it simulates the stiff pusher, as the arm's surrogate where an arm pushes, and
-    by default keeps an arm's pushes to `ARM_MAX_PUSH` and tempers the likelihood by
-    `ARM_LIKELIHOOD_POWER`."""
+    default), configured by `config` (`default_config`'s by default). Where an arm pushes
+    it simulates the arm, or with `arm_model="surrogate"` the stiff pusher fitted to it."""
     pusher = pusher or setting.pusher
-    if config is None and pusher != "stiff":
-        config = BayesConfig(max_push=ARM_MAX_PUSH, likelihood_power=ARM_LIKELIHOOD_POWER)
-    physics = replace(setting.physics(), **ARM_SURROGATE.get(pusher, {}))
-    return ParticleFilter(EnvConfig(physics=physics, pusher="stiff"), config, seed=seed)
+    config = config or default_config(setting, pusher)
+    physics = setting.physics()
+    if pusher != "stiff" and config.arm_model == "surrogate":
+        physics = replace(physics, **ARM_SURROGATE.get(pusher, {}))
+        pusher = "stiff"
+    return ParticleFilter(EnvConfig(physics=physics, pusher=pusher), config, seed=seed)
 
 
 def evaluate_bayes(
@@ -490,9 +545,9 @@ def evaluate_bayes(
     """The filter on the same fresh episodes (EVAL seed stream) and with the same metrics
     as `masspush.evaluate.evaluate`, plus interval coverage and seconds per episode.
 
-    The chains are pushed by the setting's pusher (an arm for the KUKA settings); the
-    filter's likelihood always simulates the stiff pusher, the one the batch path runs.
-    `overrides` changes fields of the filter's configuration (`filter_for`'s by default)."""
+    The chains are pushed by the setting's pusher (an arm for the KUKA settings), and the
+    filter simulates the same pusher (`filter_for`). `overrides` changes fields of the
+    filter's configuration (`default_config`'s by default)."""
     import time
 
     from tqdm import tqdm
@@ -506,9 +561,8 @@ def evaluate_bayes(
     pusher = pusher or setting.pusher
     env_config = setting.env_config(pusher)
     env = ChainEnv.from_config(env_config)
-    filt = filter_for(setting, pusher, config, seed)
-    if overrides:
-        filt = ParticleFilter(filt.env, replace(filt.config, **overrides), seed=seed)
+    config = config or default_config(setting, pusher)
+    filt = filter_for(setting, pusher, replace(config, **(overrides or {})), seed)
     policy = InfoSeekingPolicy(filt, seed) if BAYES_MODELS[model] else None
     k = env_config.pushes
     estimates, truths, inside, failures, unexplained = [], [], [], 0, 0
@@ -526,6 +580,7 @@ def evaluate_bayes(
         last = result["posteriors"][-1]
         inside.append((last.low <= result["truth"]) & (result["truth"] <= last.high))
     seconds = (time.perf_counter() - start) / episodes
+    filt.close()
     if not estimates:
         raise ValueError("every evaluation episode failed; nothing to score")
     est, truth = np.array(estimates), np.array(truths)

@@ -17,6 +17,10 @@ from masspush.bayes import BAYES_MODELS, filter_for
 from masspush.settings import get_setting
 
 MODELS = ("bayes", "bayes-random", "tp+")
+ADDED_SETTINGS = {"arm_model": "arm", "simulated_pusher": "stiff"}
+"""Filter settings recorded only since the filter could simulate an arm, with the values
+that describe the measurements made before: they simulated the stiff pusher (an arm's
+surrogate where an arm pushed), and `arm_model` did not act where the stiff pusher pushes."""
 
 
 def measure(
@@ -29,7 +33,8 @@ def measure(
     if path.exists():
         cached = json.loads(path.read_text())
         if cached.get("requested_episodes") == episodes and (
-            model not in BAYES_MODELS or cached.get("filter") == filter_settings(setting)
+            model not in BAYES_MODELS
+            or {**ADDED_SETTINGS, **cached.get("filter", {})} == filter_settings(setting)
         ):
             return cached
     result = evaluate(setting, model, episodes=episodes, seed=seed)

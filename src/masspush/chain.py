@@ -136,7 +136,7 @@ def sample_chain(
     )
 
 
-def _box_inertia(mass: float, size: Sequence[float]) -> list[float]:
+def box_inertia(mass: float, size: Sequence[float]) -> list[float]:
     """Principal moments of a solid box with full edge lengths `size`."""
     a, b, c = size
     return [mass / 12 * (b * b + c * c), mass / 12 * (a * a + c * c), mass / 12 * (a * a + b * b)]
@@ -217,7 +217,7 @@ def build_spec(
         body.explicitinertial = True
         body.mass = mass
         body.ipos = centre
-        body.inertia = _box_inertia(mass, (length, w, h))
+        body.inertia = box_inertia(mass, (length, w, h))
         body.add_geom(
             name=f"box{i}",
             type=mujoco.mjtGeom.mjGEOM_BOX,

@@ -456,7 +456,8 @@ def cmd_train_predictor(args: argparse.Namespace) -> int:
 
 
 def bayes_options(pairs: list[str] | None) -> dict[str, Any] | None:
-    """KEY=VALUE pairs into BayesConfig fields: numbers as numbers, "none" as None."""
+    """KEY=VALUE pairs into BayesConfig fields: numbers as numbers, "none" as None, text
+    for the text fields (arm_model)."""
     from dataclasses import fields
 
     from masspush.bayes import BayesConfig
@@ -469,6 +470,9 @@ def bayes_options(pairs: list[str] | None) -> dict[str, Any] | None:
         key, sep, text = pair.partition("=")
         if not sep or key not in kinds:
             raise SystemExit(f"--bayes wants KEY=VALUE, KEY one of {sorted(kinds)}; got {pair!r}")
+        if kinds[key] == "str":
+            options[key] = text
+            continue
         try:
             value = None if text.lower() == "none" else float(text)
         except ValueError:

@@ -1,0 +1,55 @@
+import numpy as np
+import pytest
+
+from masspush.arm_sims import ArmScene, ArmSimulator
+from masspush.chain import ChainParams
+from masspush.pusher import make_pusher
+from masspush.settings import get_setting
+from masspush.simulate import ChainSim
+
+PHYSICS = get_setting("2link-0.1-1").physics()
+LENGTHS = (0.12, 0.14)
+START = np.array([0.02, -0.01, 0.4, 0.5])
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return ArmScene(PHYSICS, "kuka", LENGTHS)
+
+
+def test_a_candidate_s_outcome_does_not_depend_on_what_was_pushed_before(scene):
+    first = scene.push(START, np.array([0.4, 0.3]), (0.2, 0.8), 0.6)[0]
+    scene.push(START + 0.05, np.array([-0.9, -0.5]), (0.9, 0.1), 0.95)
+    again = scene.push(START, np.array([0.4, 0.3]), (0.2, 0.8), 0.6)[0]
+    np.testing.assert_array_equal(first, again)
+
+
+def test_a_reused_scene_pushes_like_a_freshly_built_chain(scene):
+    masses, mu, action = (0.4, 0.7), 0.8, np.array([0.1, 0.5])
+    chain = ChainParams(masses, mu, LENGTHS, tuple(START[3:]), tuple(START[:3]))
+    fresh = ChainSim(chain, PHYSICS, make_pusher("kuka"))
+    fresh.push(action)
+    reused, failure, _ = scene.push(fresh_start(chain), action, masses, mu)
+    assert failure is None
+    # The arm's inverse kinematics starts elsewhere, so its path differs by a hair.
+    np.testing.assert_allclose(reused, fresh.config(), atol=0.01)
+    assert np.abs(reused - START).max() > 0.02  # the push moved the chain
+
+
+def fresh_start(chain: ChainParams) -> np.ndarray:
+    return ChainSim(chain, PHYSICS).config()
+
+
+def test_worker_processes_give_the_same_outcomes_as_one():
+    rng = np.random.default_rng(0)
+    m = 4
+    starts = np.repeat(START[None], m, 0)
+    actions = rng.uniform(-1, 1, (m, 2))
+    masses, friction = rng.uniform(0.1, 1, (m, 2)), rng.uniform(0.5, 1, m)
+    one = ArmSimulator(PHYSICS, "kuka", workers=1).simulate(LENGTHS, starts, actions, masses,
+                                                           friction)  # fmt: skip
+    two = ArmSimulator(PHYSICS, "kuka", workers=2)
+    both = two.simulate(LENGTHS, starts, actions, masses, friction)
+    two.close()
+    np.testing.assert_array_equal(one[0], both[0])
+    assert one[1] == both[1]
