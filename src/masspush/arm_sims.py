@@ -136,9 +136,10 @@ class ArmSimulator:
         return np.concatenate([r[0] for r in results]), [f for r in results for f in r[1]]
 
     def close(self) -> None:
-        if self._pool is not None:
-            self._pool.shutdown()
-            self._pool = None
+        """Stop the worker processes (a later `simulate` starts them again)."""
+        pool, self._pool = getattr(self, "_pool", None), None
+        if pool is not None:
+            pool.shutdown()
 
     def __del__(self) -> None:
         self.close()
