@@ -107,6 +107,10 @@ class _Handles:
     ee: int
     arm_geoms: np.ndarray
     chain_geoms: np.ndarray
+    is_arm: np.ndarray
+    """(ngeom,) bool: the arm's geoms other than the end-effector (a lookup per contact is
+    several times faster than `np.isin` at every control step)."""
+    is_chain: np.ndarray
     links: np.ndarray
     low: np.ndarray
     high: np.ndarray
@@ -145,6 +149,9 @@ class ArmPusher:
             arm_geoms = [g for g in range(model.ngeom) if model.geom_bodyid[g] in arm_bodies]
             chain_geoms = [g for g in range(model.ngeom) if model.geom(g).name.startswith("box")]
             self._model = model
+            is_arm, is_chain = np.zeros(model.ngeom, bool), np.zeros(model.ngeom, bool)
+            is_arm[[g for g in arm_geoms if g != ee]] = True
+            is_chain[chain_geoms] = True
             self._handles = _Handles(
                 qadr=np.array([j.qposadr[0] for j in joints]),
                 dadr=np.array([j.dofadr[0] for j in joints]),
@@ -154,6 +161,8 @@ class ArmPusher:
                 ee=ee,
                 arm_geoms=np.array([g for g in arm_geoms if g != ee]),
                 chain_geoms=np.array(chain_geoms),
+                is_arm=is_arm,
+                is_chain=is_chain,
                 links=np.array(
                     [j.bodyid[0] for j in joints[2:]]
                     + [model.site_bodyid[model.site(f"{p}tip").id]]
@@ -324,10 +333,10 @@ class ArmPusher:
         if data.ncon == 0:
             return False, False
         pairs = data.contact.geom[: data.ncon]
-        chain = np.isin(pairs, h.chain_geoms)
+        chain = h.is_chain[pairs]
         with_chain = chain[:, 0] | chain[:, 1]
         ee = (pairs == h.ee).any(axis=1) & with_chain
-        arm = np.isin(pairs, h.arm_geoms).any(axis=1) & with_chain
+        arm = h.is_arm[pairs].any(axis=1) & with_chain
         return bool(ee.any()), bool(arm.any())
 
     def _ik(
