@@ -1,4 +1,5 @@
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -87,7 +88,9 @@ def test_the_fine_tuned_predictor_keeps_its_policy_and_names_its_worlds(tmp_path
     assert list(meta["randomised"]["ranges"]["solvers"]) == list(WorldRanges().solvers)
     assert meta["finetuned_from"].endswith("tp+.pt")
     assert meta["policy"] == "learned"
-    with pytest.raises(ValueError, match="needs a shipped --model"):
+    with pytest.raises(ValueError, match="ships the shipped tp"):
+        randomise(replace(TINY, model="rp"), tmp_path / "rp", ship=True, progress=False)
+    with pytest.raises(ValueError, match="ships the shipped tp"):
         randomise(
             RandomiseConfig(setting=SETTING, model=str(path), episodes=4, shard_size=2, steps=4),
             tmp_path / "again", workers=1, ship=True, progress=False,

@@ -199,8 +199,11 @@ def randomise(
 
     model_file = resolve_model(config.model, config.setting)
     shipped = SHIPPED_DIR / config.setting / f"{SHIPPED_NAME}.pt"
-    if ship and Path(model_file).parent != shipped.parent:
-        raise ValueError("--ship needs a shipped --model: its policy file must sit beside it")
+    if ship and (config.model != "tp+" or Path(model_file).parent != shipped.parent):
+        raise ValueError(
+            f"--ship ships the shipped tp+ tuned as {SHIPPED_NAME} (its policy file sits "
+            f"beside it); got --model {config.model}"
+        )
     episodes = collect_randomised(config, out, workers, progress)
     model, meta = load_model(model_file, config.setting)
     run_dir = Path(out) / "predictor"
