@@ -218,11 +218,10 @@ class ParticleFilter:
         from the rest poses `starts` (d,) or (m, d) with `actions` (m, 2), and which pushes
         failed (m,)."""
         m = len(masses)
-        starts = np.broadcast_to(np.asarray(starts, float), (m, self.physics.obs_dim))
+        starts = np.array(np.broadcast_to(np.asarray(starts, float), (m, self.physics.obs_dim)))
         limit = self.physics.joint_limit - 1e-3
+        starts[:, 3:] = np.clip(starts[:, 3:], -limit, limit)
         if self.arm is not None:
-            starts = starts.copy()
-            starts[:, 3:] = np.clip(starts[:, 3:], -limit, limit)
             configs, failures = self.arm.simulate(
                 self.lengths, starts, np.asarray(actions, float), np.asarray(masses, float),
                 np.asarray(friction, float),
@@ -233,7 +232,7 @@ class ParticleFilter:
                 tuple(float(v) for v in mass),
                 float(mu),
                 self.lengths,
-                tuple(float(v) for v in np.clip(start[3:], -limit, limit)),
+                tuple(float(v) for v in start[3:]),
                 (float(start[0]), float(start[1]), float(start[2])),
             )
             for mass, mu, start in zip(masses, friction, starts, strict=True)

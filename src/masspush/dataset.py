@@ -187,11 +187,15 @@ def _shard_len(manifest: Manifest, j: int) -> int:
 
 
 def _complete(root: Path, manifest: Manifest, j: int) -> bool:
-    path = shard_path(root, j)
+    return shard_complete(shard_path(root, j), _shard_len(manifest, j))
+
+
+def shard_complete(path: Path, episodes: int) -> bool:
+    """Whether the shard at `path` is there, readable and holds `episodes` episodes."""
     if not path.exists():
         return False
     try:
-        return len(read_shard(path)) == _shard_len(manifest, j)
+        return len(read_shard(path)) == episodes
     except DatasetError:
         return False  # a damaged shard is recomputed
 

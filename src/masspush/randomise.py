@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from masspush.rollout import NOT_RUN, Episodes, failure_code
+from masspush.rollout import Episodes, empty_episodes, failure_code
 from masspush.target_world import WorldRanges
 
 SHIPPED_NAME = "tp+dr"
@@ -61,6 +61,9 @@ class RandomiseConfig:
     @property
     def shards(self) -> int:
         return -(-self.episodes // self.shard_size)
+
+    def shard_len(self, j: int) -> int:
+        return min(self.shard_size, self.episodes - j * self.shard_size)
 
     def identity(self) -> dict[str, Any]:
         """What a resumed collection must share with the one it continues."""
@@ -100,32 +103,19 @@ def run_randomised(
 
 
 def _episode_arrays(index: int, seed: int, episode, truth: dict, pushes: int) -> Episodes:
-    d = len(episode.start.config)
-    observations = np.full((1, pushes + 1, d), np.nan, np.float32)
-    configs = np.full((1, pushes + 1, d), np.nan, np.float32)
-    actions = np.full((1, pushes, 2), np.nan, np.float32)
-    executed = np.full((1, pushes, 2), np.nan, np.float32)
-    failure = np.full((1, pushes), NOT_RUN, np.int8)
-    observations[0, 0], configs[0, 0] = episode.start.config, truth["config"]
+    out = empty_episodes(1, pushes, len(truth["masses"]))
+    out.index[0], out.seed[0] = index, seed
+    out.observations[0, 0], out.configs[0, 0] = episode.start.config, truth["config"]
     for k, (action, report) in enumerate(zip(episode.actions, episode.reports, strict=True)):
-        actions[0, k] = action
-        executed[0, k] = report.details["executed"]
-        failure[0, k] = failure_code(report.failure)
+        out.actions[0, k] = action
+        out.executed[0, k] = report.details["executed"]
+        out.failure[0, k] = failure_code(report.failure)
         if report.failure is None:
-            observations[0, k + 1] = report.config
-            configs[0, k + 1] = report.details["config"]
-    return Episodes(
-        index=np.array([index], np.int64),
-        seed=np.array([seed], np.uint64),
-        observations=observations,
-        configs=configs,
-        actions=actions,
-        executed=executed,
-        failure=failure,
-        masses=np.asarray(truth["masses"], np.float32)[None],
-        friction=np.array([truth["friction"]], np.float32),
-        lengths=np.asarray(episode.start.lengths, np.float32)[None],
-    )
+            out.observations[0, k + 1] = report.config
+            out.configs[0, k + 1] = report.details["config"]
+    out.masses[0], out.friction[0] = truth["masses"], truth["friction"]
+    out.lengths[0] = episode.start.lengths
+    return out
 
 
 def _shard_job(args) -> tuple[int, int]:
@@ -136,7 +126,7 @@ def _shard_job(args) -> tuple[int, int]:
     torch.set_num_threads(1)  # one process per core, as in `masspush.rollout`
     config, model_file, root, j = args
     lo = j * config.shard_size
-    indices = np.arange(lo, min(lo + config.shard_size, config.episodes))
+    indices = np.arange(lo, lo + config.shard_len(j))
     episodes = run_randomised(config.setting, model_file, config.ranges, indices,
                               config.base_seed)  # fmt: skip
     write_shard(shard_path(root, j), episodes)
@@ -148,7 +138,7 @@ def collect_randomised(
     progress: bool = True,
 ) -> Episodes:  # fmt: skip
     """Collect (or resume collecting) the randomised episodes into `out`; all of them."""
-    from masspush.dataset import read_shard, shard_path
+    from masspush.dataset import read_shard, shard_complete, shard_path
     from masspush.evaluate import resolve_model
 
     root = Path(out)
@@ -164,19 +154,12 @@ def collect_randomised(
             )
     stamp.write_text(json.dumps(identity, indent=2) + "\n")
 
-    def complete(j: int) -> bool:
-        path = shard_path(root, j)
-        want = min(config.shard_size, config.episodes - j * config.shard_size)
-        try:
-            return path.exists() and len(read_shard(path)) == want
-        except ValueError:
-            return False  # a damaged shard is recomputed
-
-    todo = [j for j in range(config.shards) if not complete(j)]
+    todo = [
+        j for j in range(config.shards)
+        if not shard_complete(shard_path(root, j), config.shard_len(j))
+    ]  # fmt: skip
     workers = max(1, min(workers or os.cpu_count() or 1, len(todo)))
-    done = config.episodes - sum(
-        min(config.shard_size, config.episodes - j * config.shard_size) for j in todo
-    )
+    done = config.episodes - sum(config.shard_len(j) for j in todo)
     with tqdm(total=config.episodes, initial=done, desc=f"randomised worlds, {config.model}",
               unit="ep", disable=not progress) as bar:  # fmt: skip
         if todo:

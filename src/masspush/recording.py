@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from masspush.rollout import Episodes, _empty
+from masspush.rollout import Episodes, empty_episodes
 
 FORMAT, VERSION = "masspush-episodes", 1
 UNITS = {"length": "m", "angle": "rad", "mass": "kg"}
@@ -78,7 +78,7 @@ class Recording:
         recorded with fewer pushes is scored after its last one)."""
         k = max(len(e["actions"]) for e in self.episodes)
         n, d = self.n_links, 3 + self.n_links - 1
-        out = _empty(len(self.episodes), k, n)
+        out = empty_episodes(len(self.episodes), k, n)
         out.index[:] = np.arange(len(self.episodes))
         for i, e in enumerate(self.episodes):
             obs = np.asarray(e["observations"], np.float32).reshape(-1, d)

@@ -127,7 +127,7 @@ class Episodes:
         """Episodes holding only what the robot knows (for predicting mid-episode): the
         other fields are zero."""
         e, k = actions.shape[:2]
-        out = _empty(e, k, lengths.shape[1])
+        out = empty_episodes(e, k, lengths.shape[1])
         out.observations, out.actions, out.lengths = observations, actions, lengths
         return out
 
@@ -148,7 +148,7 @@ def failure_code(reason: str | None) -> int:
     return 0 if reason is None else 1 + FAILURES.index(reason)
 
 
-def _empty(e: int, k: int, n: int) -> Episodes:
+def empty_episodes(e: int, k: int, n: int) -> Episodes:
     d = 3 + n - 1
     return Episodes(
         index=np.zeros(e, np.int64),
@@ -179,7 +179,7 @@ def run_batch(
     physics = env_config.physics
     k, n = env_config.pushes, physics.n_links
     obs_sigma = env_config.obs_noise
-    out = _empty(len(indices), k, n)
+    out = empty_episodes(len(indices), k, n)
     seeds = np.array([episode_seed(purpose, base_seed, int(i)) for i in indices], np.uint64)
     rngs = [np.random.default_rng(int(s)) for s in seeds]
     chains = [sample_chain(physics, rng) for rng in rngs]
@@ -224,7 +224,7 @@ def run_env(
     physics = env_config.physics
     k, n = env_config.pushes, physics.n_links
     env = ChainEnv.from_config(env_config)
-    out = _empty(len(indices), k, n)
+    out = empty_episodes(len(indices), k, n)
     d = physics.obs_dim
     for e, i in enumerate(indices):
         seed = episode_seed(purpose, base_seed, int(i))
