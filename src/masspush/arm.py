@@ -31,8 +31,8 @@ from masspush.config import PhysicsConfig
 from masspush.osc import (
     KD,
     KP,
+    TASK_DAMPING,
     desired_acceleration,
-    osc_torque,
     rotation_error,
     scale_to_limits,
 )
@@ -115,6 +115,12 @@ class _Handles:
     low: np.ndarray
     high: np.ndarray
     torque_limit: np.ndarray
+    dofs: slice
+    """The arm's degrees of freedom, consecutive in every scene built here."""
+    jac: np.ndarray
+    """(6, nv) scratch: the tip's Jacobian (translation rows, then rotation rows)."""
+    minv_jt: np.ndarray
+    """(6, nv) scratch: the rows of M^-1 J^T."""
 
 
 class ArmPusher:
@@ -152,9 +158,12 @@ class ArmPusher:
             is_arm, is_chain = np.zeros(model.ngeom, bool), np.zeros(model.ngeom, bool)
             is_arm[[g for g in arm_geoms if g != ee]] = True
             is_chain[chain_geoms] = True
+            dadr = np.array([j.dofadr[0] for j in joints])
+            if not np.array_equal(dadr, np.arange(dadr[0], dadr[0] + 6)):
+                raise ValueError(f"the arm's joints are not consecutive dofs: {dadr}")
             self._handles = _Handles(
                 qadr=np.array([j.qposadr[0] for j in joints]),
-                dadr=np.array([j.dofadr[0] for j in joints]),
+                dadr=dadr,
                 act=np.array([model.actuator(f"{p}joint{i}").id for i in range(1, 7)]),
                 site=model.site(f"{p}tip").id,
                 mocap=int(model.body_mocapid[base]),
@@ -170,6 +179,9 @@ class ArmPusher:
                 low=np.array([j.range[0] for j in joints]),
                 high=np.array([j.range[1] for j in joints]),
                 torque_limit=np.array([model.jnt_actfrcrange[j.id, 1] for j in joints]),
+                dofs=slice(int(dadr[0]), int(dadr[0]) + 6),
+                jac=np.zeros((6, model.nv)),
+                minv_jt=np.zeros((6, model.nv)),
             )
         assert self._handles is not None
         return self._handles
@@ -295,11 +307,43 @@ class ArmPusher:
 
         With `free_axis`, position errors along that axis are ignored (velocity control)."""
         mujoco.mj_step1(model, data)  # positions, velocities, contacts, mass matrix: now
-        jac = self._jacobian(model, data, h)
-        tip_velocity = jac @ data.qvel[h.dadr]
-        full_m = np.empty((model.nv, model.nv))
-        mujoco.mj_fullM(model, data, full_m)
-        mass = full_m[np.ix_(h.dadr, h.dadr)]
+        tau, tip_velocity = self._torque(model, data, h, x_des, r_des, v_des, free_axis)
+        headroom = h.torque_limit - np.abs(data.qfrc_gravcomp[h.dofs])
+        data.ctrl[h.act] = scale_to_limits(tau, headroom)
+        touching, arm_touch = self._contacts(data, h)
+        mujoco.mj_step2(model, data)
+        if self._on_step is not None:
+            self._on_step()
+        ratio = float((np.abs(data.qfrc_actuator[h.dofs]) / h.torque_limit).max())
+        if ratio > self.trace.max_torque_ratio:
+            self.trace.max_torque_ratio = ratio
+        return tip_velocity, touching, arm_touch
+
+    def _torque(
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        h: _Handles,
+        x_des: np.ndarray,
+        r_des: np.ndarray,
+        v_des: np.ndarray,
+        free_axis: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The OSC law's joint torques (before the limits) and the tip velocity, for the
+        state after `mj_step1`. `osc.osc_torque`'s law, computed with what the step already
+        has: M^-1 J^T from MuJoCo's factorised mass matrix (`mj_solveM`), one linear solve
+        for M_x xdd, and no temporaries that the law runs at every step would allocate
+        (the arm's pushes spend most of their time here; tests/test_arm.py holds it to the
+        reference law)."""
+        jac_full = h.jac
+        mujoco.mj_jacSite(model, data, jac_full[:3], jac_full[3:], h.site)
+        jac = jac_full[:, h.dofs]
+        tip_velocity = jac @ data.qvel[h.dofs]
+        # The arm is a tree of its own: J is zero off its dofs and M block-diagonal, so
+        # J M^-1 J^T needs only the arm's columns of M^-1 J^T.
+        mujoco.mj_solveM(model, data, h.minv_jt, jac_full)
+        inv_lambda = jac @ h.minv_jt[:, h.dofs].T
+        inv_lambda.flat[::7] += TASK_DAMPING
         pos_err = x_des - data.site_xpos[h.site]
         if free_axis is not None:
             pos_err = pos_err - (pos_err @ free_axis) * free_axis
@@ -311,15 +355,12 @@ class ArmPusher:
             self.kp,
             self.kd,
         )
-        headroom = h.torque_limit - np.abs(data.qfrc_gravcomp[h.dadr])
-        data.ctrl[h.act] = scale_to_limits(osc_torque(jac, mass, xdd), headroom)
-        touching, arm_touch = self._contacts(data, h)
-        mujoco.mj_step2(model, data)
-        if self._on_step is not None:
-            self._on_step()
-        ratio = np.abs(data.qfrc_actuator[h.dadr]) / h.torque_limit
-        self.trace.max_torque_ratio = max(self.trace.max_torque_ratio, float(ratio.max()))
-        return tip_velocity, touching, arm_touch
+        # inv_lambda is symmetric positive definite: MuJoCo's Cholesky costs a fraction of
+        # NumPy's general solver's call overhead at this size.
+        mujoco.mju_cholFactor(inv_lambda, 0.0)
+        task_force = np.empty(6)
+        mujoco.mju_cholSolve(task_force, inv_lambda, xdd)
+        return jac.T @ task_force, tip_velocity
 
     @staticmethod
     def _jacobian(model: mujoco.MjModel, data: mujoco.MjData, h: _Handles) -> np.ndarray:

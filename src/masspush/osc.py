@@ -11,32 +11,39 @@ Everything here is pure NumPy on matrices, testable without a simulator.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 KP = 3000.0
 """Stiffness of the end-effector PD rule [paper Sec. 3.4]."""
 KD = 152.0
 """Damping of the end-effector PD rule [paper Sec. 3.4]."""
+TASK_DAMPING = 1e-6
+"""Added to J M^-1 J^T before it is inverted, so M_x stays finite near singularities [ours]."""
 
 
 def rotation_error(r_des: np.ndarray, r: np.ndarray) -> np.ndarray:
     """x_R_des (-) x_R: the rotation vector (world frame) that turns r into r_des."""
     err = r_des @ r.T
+    # Scalar arithmetic: this runs at every control step, where NumPy's per-call overhead
+    # on 3-vectors would cost more than the arithmetic.
+    (a, b, c), (d, e, f), (g, h, i) = err.tolist()
     # Rotation vector from the quaternion of err: robust at small and large angles.
-    w = np.sqrt(max(0.0, 1.0 + np.trace(err))) / 2.0
-    v = np.array([err[2, 1] - err[1, 2], err[0, 2] - err[2, 0], err[1, 0] - err[0, 1]])
+    w = math.sqrt(max(0.0, 1.0 + a + e + i)) / 2.0
+    vx, vy, vz = h - f, c - g, d - b
     if w > 1e-6:
-        v = v / (4.0 * w)
+        vx, vy, vz = vx / (4.0 * w), vy / (4.0 * w), vz / (4.0 * w)
     else:  # a half-turn: take the axis from the diagonal
         axis = np.sqrt(np.clip((np.diag(err) + 1.0) / 2.0, 0.0, None))
         k = int(np.argmax(axis))
         axis = err[:, k] + np.eye(3)[k]
         return np.pi * axis / np.linalg.norm(axis)
-    s = np.linalg.norm(v)
+    s = math.sqrt(vx * vx + vy * vy + vz * vz)
     if s < 1e-12:
         return np.zeros(3)
-    angle = 2.0 * np.arctan2(s, w)
-    return angle * v / s
+    scale = 2.0 * math.atan2(s, w) / s
+    return np.array([vx * scale, vy * scale, vz * scale])
 
 
 def desired_acceleration(
@@ -51,7 +58,9 @@ def desired_acceleration(
     return kp * np.concatenate([pos_err, rot_err]) + kd * (vel_des - vel)
 
 
-def task_inertia(jac: np.ndarray, mass_matrix: np.ndarray, damping: float = 1e-6) -> np.ndarray:
+def task_inertia(
+    jac: np.ndarray, mass_matrix: np.ndarray, damping: float = TASK_DAMPING
+) -> np.ndarray:
     """M_x = (J M^-1 J^T)^-1, damped so that it stays finite near singularities."""
     inv_lambda = jac @ np.linalg.solve(mass_matrix, jac.T)
     return np.linalg.inv(inv_lambda + damping * np.eye(jac.shape[0]))

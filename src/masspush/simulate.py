@@ -114,8 +114,9 @@ class ChainSim:
         """The chain's current configuration (x, y, yaw, joint angles), noiseless."""
         return self.layout.config(self.data.qpos)
 
-    def push(self, action: np.ndarray) -> PushOutcome:
-        """Execute the push an action stands for and simulate until rest.
+    def push(self, action: np.ndarray, settle: bool = True) -> PushOutcome:
+        """Execute the push an action stands for and simulate until rest (with `settle`
+        False, only until the pusher is done: the chain may still be sliding).
 
         After a 'nan' failure the state is restored to before the push, so the
         configuration stays finite; other failures keep the state they ended in.
@@ -129,7 +130,7 @@ class ChainSim:
         self.phase = "settle"
         push_steps = round((self.data.time - start_time) / self.physics.timestep)
         settle_steps = 0
-        if failure is None:
+        if failure is None and settle:
             failure, settle_steps = self.settle()
         if failure == "nan":
             self._restore(saved)
