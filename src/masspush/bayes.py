@@ -503,7 +503,7 @@ def run_bayes_episode(
 
 
 ARM_CONFIG = BayesConfig(particles=128, lookahead_particles=16, candidates=4)
-"""Where an arm pushes and the filter simulates it: an arm push costs ~20 ms of one core
+"""Where an arm pushes and the filter simulates it: an arm push costs ~11-17 ms of one core
 against ~0.3 ms on the batch path, so fewer particles, lookahead particles and candidates
 keep an episode within 10 s on two cores (docs/results.md) [ours]."""
 
