@@ -19,9 +19,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from masspush.evaluate import model_policy, resolve_model
+from masspush.evaluate import model_and_policy
 from masspush.finetune import PAPER_CLASSES
-from masspush.predictor import load_model
 from masspush.robot import run_estimation
 from masspush.settings import get_setting
 from masspush.target_world import TargetWorld, TargetWorldRobot
@@ -61,9 +60,7 @@ def main() -> None:
     parser.add_argument("--groups", default=",".join(["none", "all", *list(GROUPS)[1:]]))
     args = parser.parse_args()
     setting = get_setting(args.setting)
-    model_file = resolve_model(args.model, setting.name)
-    predictor, meta = load_model(model_file, setting.name)
-    policy = model_policy(meta, model_file)
+    predictor, _, policy = model_and_policy(args.model, setting.name)
     pushes = setting.env_config().pushes
     classes = {label: PAPER_CLASSES[label] for label in CLASSES}
     print("| target world, put back to training | " + " | ".join(classes) + " | s |")

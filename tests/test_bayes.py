@@ -9,6 +9,7 @@ from masspush.bayes import (
     ARM_LIKELIHOOD_POWER,
     ARM_MAX_PUSH,
     ARM_SURROGATE,
+    FILTER_REVISION,
     SURROGATE_CONFIG,
     SURROGATE_LIKELIHOOD_POWER,
     BayesConfig,
@@ -272,3 +273,26 @@ def test_the_reported_point_is_the_configured_one():
         assert not np.allclose(post.mean, post.median)
     with pytest.raises(ValueError, match="point"):
         BayesConfig(point="mode")
+
+
+def test_the_estimate_is_taken_before_resampling(monkeypatch):
+    filt = ParticleFilter(env_config(), SMALL, seed=0)
+    filt.reset(np.array([0.12, 0.12]))
+    before = []
+    resample = filt._resample_and_rejuvenate
+
+    def spy():
+        before.append(filt.posterior())
+        resample()
+
+    monkeypatch.setattr(filt, "_resample_and_rejuvenate", spy)
+    start = np.array([0.0, 0.0, 0.3, 0.2])
+    predicted, _ = filt.simulate(start, np.array([[0.3, 0.5]]), np.array([[1.0, 6.0]]),
+                                 np.array([0.8]))  # fmt: skip
+    posterior = filt.update(start, np.array([0.3, 0.5]), predicted[0])
+    assert before, "one push from the prior should make the weights degenerate"
+    np.testing.assert_array_equal(posterior.estimate, before[0].estimate)
+    np.testing.assert_array_equal(posterior.low, before[0].low)
+    # The resampled cloud's own estimate differs: the jitter moved the particles.
+    assert not np.allclose(filt.posterior().estimate, posterior.estimate)
+    assert filt.settings()["revision"] == FILTER_REVISION

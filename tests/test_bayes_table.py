@@ -18,11 +18,15 @@ def test_measurements_are_cached_and_the_table_built_from_them(tmp_path, monkeyp
     monkeypatch.setattr(evaluate_module, "evaluate", fake_evaluate(calls))
     text = bayes_table(["2link-1-10"], 7, root=tmp_path, tp_episodes=9)
     assert sorted(calls) == [
-        ("2link-1-10", "bayes", 7), ("2link-1-10", "bayes-random", 7), ("2link-1-10", "tp+", 9)
+        ("2link-1-10", "bayes", 7), ("2link-1-10", "bayes-random", 7),
+        ("2link-1-10", "tp+", 7), ("2link-1-10", "tp+", 9),
     ]  # fmt: skip
-    assert "| 2link-1-10 | 5.00 / 8.26 | **3.00** | 5.00 | 90 % / 90 % / 90 % | 4.2 | 7 |" in text
+    # TP+ twice: Table 1's 9 episodes, and the filter's 7 for the paired column.
+    assert (tmp_path / "results" / "bayes" / "2link-1-10-tp+-same-episodes.json").exists()
+    assert "| 2link-1-10 | 5.00 / 8.26 | **3.00** | 5.00 | 5.00 | 90 % / 90 % / 90 % | 4.2 | 7 |" \
+        in text  # fmt: skip
     bayes_table(["2link-1-10"], 7, root=tmp_path, tp_episodes=9)  # all cached
-    assert len(calls) == 3
+    assert len(calls) == 4
     bayes_table(["2link-1-10"], 8, ["bayes"], root=tmp_path)  # another size: measured again
     assert calls[-1] == ("2link-1-10", "bayes", 8)
     # The filter's configuration changed since: the Bayesian cells are measured again.
@@ -30,7 +34,8 @@ def test_measurements_are_cached_and_the_table_built_from_them(tmp_path, monkeyp
     monkeypatch.setattr(bayes_table_module, "filter_settings", lambda setting: changed)
     before = len(calls)
     bayes_table(["2link-1-10"], 8, root=tmp_path, tp_episodes=9)
-    assert calls[before:] == [("2link-1-10", "bayes", 8), ("2link-1-10", "bayes-random", 8)]
+    assert calls[before:] == [("2link-1-10", "bayes", 8), ("2link-1-10", "bayes-random", 8),
+                              ("2link-1-10", "tp+", 8)]  # fmt: skip
     assert (tmp_path / "results" / "bayes.md").read_text().count("| 2link-1-10 |") == 1
 
 

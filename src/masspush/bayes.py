@@ -45,6 +45,11 @@ from masspush.batch import ChainBatch
 from masspush.chain import ChainParams, wrap_angle
 from masspush.config import EnvConfig
 
+FILTER_REVISION = 2
+"""Raised when the filter's algorithm changes in a way its configuration does not show, so
+that results measured with an earlier one are not taken for this one's (`bayes_table`).
+2: the estimate after a push comes from the weighted particles, before resampling."""
+
 
 class UnexplainedObservationWarning(UserWarning):
     """No particle explains an observation; the update was tempered."""
@@ -173,9 +178,11 @@ class ParticleFilter:
 
     def settings(self) -> dict:
         """The configuration as run: `BayesConfig` with its defaults resolved for this chain,
-        and the simulated pusher's speed (the arm's surrogate where an arm pushes)."""
+        the simulated pusher's speed (the arm's surrogate where an arm pushes) and the
+        algorithm's `FILTER_REVISION`."""
         return {
             **asdict(self.config),
+            "revision": FILTER_REVISION,
             "motion_slack": self.motion_slack,
             "candidates": self.candidates,
             "likelihood_power": self.likelihood_power,
@@ -303,9 +310,12 @@ class ParticleFilter:
             log_lik = self._temper(log_lik)
         self.log_w = self.log_w + log_lik
         self.log_w -= self.log_w.max()
+        # The estimate comes from the weighted particles, before resampling and jitter add
+        # their noise to the cloud (the standard SMC practice [Doucet & Johansen 2011]).
+        posterior = self.posterior()
         if self.ess < self.config.ess_fraction * m:
             self._resample_and_rejuvenate()
-        return self.posterior()
+        return posterior
 
     def _sigma(
         self, start: np.ndarray, predicted: np.ndarray, failed: np.ndarray, spread: np.ndarray

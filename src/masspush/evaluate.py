@@ -55,6 +55,16 @@ def model_policy(meta: dict[str, Any], model_file: str | os.PathLike):
     return POLICIES[name]()
 
 
+def model_and_policy(model: str | os.PathLike, setting: str):
+    """A model (shipped name or path) for `setting`: its predictor, metadata and the
+    policy it was trained with (`model_policy`)."""
+    from masspush.predictor import load_model
+
+    path = resolve_model(model, setting)
+    predictor, meta = load_model(path, setting)
+    return predictor, meta, model_policy(meta, path)
+
+
 def evaluate(
     setting: str | Setting,
     model: str | os.PathLike,

@@ -65,8 +65,7 @@ def record_arm(
 ) -> dict[str, Any]:
     """Run one arm's episodes in the target world into the recording at `path` (kept and
     reused when complete, with its failed-push counts beside it); returns the counts."""
-    from masspush.evaluate import model_policy, resolve_model
-    from masspush.predictor import load_model
+    from masspush.evaluate import model_and_policy
     from masspush.recording import Recording, read_recording, write_recording
     from masspush.robot import SimRobot, run_estimation
     from masspush.settings import get_setting
@@ -83,9 +82,7 @@ def record_arm(
         if len(recording.episodes) == wanted and recording.robot == robot_name:
             return {"episodes": wanted, "failed_pushes": json.loads(counts.read_text()),
                     "reused": True}  # fmt: skip
-    model_file = resolve_model(model, setting.name)
-    predictor, meta = load_model(model_file, setting.name)
-    policy = model_policy(meta, model_file)
+    predictor, _, policy = model_and_policy(model, setting.name)
     recording = Recording(n_links=setting.n_links, robot=robot_name, setting=setting.name)
     failures: dict[str, int] = {}
     bar = tqdm(total=wanted, desc=f"{config.world} world, {arm} pushes", disable=not progress)
