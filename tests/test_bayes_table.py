@@ -4,11 +4,19 @@ from masspush.bayes_table import bayes_table, filter_settings
 
 
 def fake_evaluate(calls):
-    def evaluate(setting, model, episodes, seed=0):
+    def evaluate(setting, model, episodes, seed=0, per_episode=False):
         calls.append((setting, model, episodes))
-        return {"percentage_error": 3.0 if model == "bayes" else 5.0, "coverage": 0.9,
-                "seconds_per_episode": 4.2, "episodes": episodes,
-                "filter": filter_settings(setting)}  # fmt: skip
+        result = {"percentage_error": 3.0 if model == "bayes" else 5.0, "coverage": 0.9,
+                  "seconds_per_episode": 4.2, "episodes": episodes,
+                  "filter": filter_settings(setting)}  # fmt: skip
+        if per_episode or model == "bayes":
+            # The filter failed on episode 0, TP+ on none; both off by 0.1 elsewhere.
+            index = list(range(1 if model == "bayes" else 0, episodes))
+            truth = [[0.5, 0.5]] * len(index)
+            off = 0.1 if model == "bayes" else 0.2
+            estimate = [[0.5 + off, 0.5 - off]] * len(index)
+            result["per_episode"] = {"index": index, "estimate": estimate, "truth": truth}
+        return result
 
     return evaluate
 
@@ -23,8 +31,9 @@ def test_measurements_are_cached_and_the_table_built_from_them(tmp_path, monkeyp
     ]  # fmt: skip
     # TP+ twice: Table 1's 9 episodes, and the filter's 7 for the paired column.
     assert (tmp_path / "results" / "bayes" / "2link-1-10-tp+-same-episodes.json").exists()
-    assert "| 2link-1-10 | 5.00 / 8.26 | **3.00** | 5.00 | 5.00 | 90 % / 90 % / 90 % | 4.2 | 7 |" \
-        in text  # fmt: skip
+    # Paired on the 6 episodes both scored: MAE 0.1 and 0.2 over shares of 0.5 (+ 1e-4).
+    row = "| 2link-1-10 | 5.00 / 8.26 | **3.00** | 20.00 / 39.99 (6) | 5.00 | 90 % / 90 % / 90 % |"
+    assert row in text
     bayes_table(["2link-1-10"], 7, root=tmp_path, tp_episodes=9)  # all cached
     assert len(calls) == 4
     bayes_table(["2link-1-10"], 8, ["bayes"], root=tmp_path)  # another size: measured again
@@ -59,8 +68,25 @@ def test_a_measurement_from_before_the_arm_model_counts_only_where_it_still_hold
         old = {k: v for k, v in filter_settings(setting).items() if k not in ADDED_SETTINGS}
         path = tmp_path / "results" / "bayes" / f"{setting}-bayes.json"
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps({"requested_episodes": 5, "filter": old, "old": True}))
+        path.write_text(
+            json.dumps({"requested_episodes": 5, "filter": old, "old": True, "per_episode": {}})
+        )
         before = len(calls)
         result = measure(setting, "bayes", 5, root=tmp_path)
         assert result.get("old", False) is still_holds
         assert len(calls) - before == (0 if still_holds else 1)
+
+
+def test_a_filter_measurement_without_episodes_is_measured_again_for_pairing(tmp_path, monkeypatch):
+    import json
+
+    from masspush.bayes_table import measure
+
+    calls = []
+    monkeypatch.setattr(evaluate_module, "evaluate", fake_evaluate(calls))
+    path = tmp_path / "results" / "bayes" / "2link-1-10-bayes.json"
+    path.parent.mkdir(parents=True)
+    path.write_text(json.dumps({"requested_episodes": 5, "filter": filter_settings("2link-1-10")}))
+    assert "per_episode" in measure("2link-1-10", "bayes", 5, root=tmp_path) and len(calls) == 1
+    measure("2link-1-10", "bayes", 5, root=tmp_path)  # now cached with its episodes
+    assert len(calls) == 1

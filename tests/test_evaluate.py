@@ -94,3 +94,41 @@ def test_every_shipped_model_loads_by_name_with_its_policy():
             expected = "random" if path.stem.startswith("rp") else "learned"
             assert meta.get("policy", "random") == expected, (name, path.name)
             assert (policy.name == "random") == (expected == "random")
+
+
+def test_per_episode_records_pair_a_learned_model_with_the_filter(model_file):
+    from masspush.bayes import BayesConfig, evaluate_bayes
+    from masspush.metrics import paired_percentage_errors
+
+    learned = evaluate("2link-0.1-1", model_file, episodes=4, per_episode=True)
+    assert "per_episode" not in evaluate("2link-0.1-1", model_file, episodes=2)
+    small = BayesConfig(particles=16, lookahead_particles=4)
+    filt = evaluate_bayes(get_setting("2link-0.1-1"), "bayes-random", episodes=3, pusher="stiff",
+                          config=small, progress=False)  # fmt: skip
+    record = learned["per_episode"]
+    assert len(record["index"]) == learned["episodes"] == len(record["estimate"])
+    # The same evaluation stream: the episodes both scored have the same chains (the
+    # truths must agree, or the pairing raises).
+    bayes_err, learned_err, n = paired_percentage_errors(filt["per_episode"], record)
+    assert n == len(set(filt["per_episode"]["index"]) & set(record["index"])) >= 2
+    assert bayes_err > 0 and learned_err > 0
+
+
+def test_the_cli_pairs_an_evaluation_with_an_earlier_one(model_file, tmp_path, capsys):
+    from masspush.cli import main
+
+    args = ["evaluate", "--setting", "2link-0.1-1", "--model", str(model_file), "--episodes", "3"]
+    assert main([*args, "--per-episode", "--json"]) == 0
+    first = tmp_path / "first.json"
+    first.write_text(capsys.readouterr().out)
+    assert main([*args, "--paired-with", str(first), "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    # The same model on the same episodes: the pairing finds them all and both agree.
+    paired = result["paired"]
+    assert paired["episodes"] == result["episodes"]
+    assert paired["percentage_error"] == pytest.approx(paired["their_percentage_error"])
+    assert paired["percentage_error"] == pytest.approx(result["percentage_error"])
+    bare = tmp_path / "bare.json"
+    bare.write_text(json.dumps({"model": "x"}))
+    with pytest.raises(SystemExit, match="no per-episode record"):
+        main([*args, "--paired-with", str(bare)])

@@ -42,3 +42,21 @@ def test_constant_floor_matches_the_sampling_distribution():
     assert result["constant_floor_relative_error"] == pytest.approx(41.3, abs=0.2)
     assert result["percentage_error"] == result["constant_floor"]
     assert all_metrics(d, d)["percentage_error"] == 0.0
+
+
+def test_paired_errors_use_only_the_episodes_both_scored():
+    from masspush.metrics import paired_percentage_errors
+
+    truth = [[0.1, 0.9], [0.5, 0.5], [0.4, 0.6]]
+    a = {"index": [0, 1, 2], "truth": truth, "estimate": [[0.2, 0.8], [0.5, 0.5], [0.4, 0.6]]}
+    b = {"index": [1, 2], "truth": truth[1:], "estimate": [[0.6, 0.4], [0.4, 0.6]]}
+    err_a, err_b, n = paired_percentage_errors(a, b)
+    assert n == 2
+    # Episode 0 (a light link, which scales the metric up) is left out of both.
+    assert err_a == pytest.approx(0.0) and err_b == pytest.approx(
+        percentage_error(np.array(b["estimate"]), np.array(truth[1:]))
+    )
+    with pytest.raises(ValueError, match="not the same episodes"):
+        paired_percentage_errors(a, {**b, "truth": [[0.3, 0.7], [0.4, 0.6]]})
+    with pytest.raises(ValueError, match="share no episode"):
+        paired_percentage_errors(a, {"index": [7], "truth": [[0.5, 0.5]], "estimate": [[0.5, 0.5]]})

@@ -598,6 +598,7 @@ def evaluate_bayes(
     from tqdm import tqdm
 
     from masspush.env import ChainEnv
+    from masspush.evaluate import per_episode_record
     from masspush.metrics import all_metrics, percentage_error
     from masspush.rollout import EVAL, episode_seed
 
@@ -611,6 +612,7 @@ def evaluate_bayes(
     policy = InfoSeekingPolicy(filt, seed) if BAYES_MODELS[model] else None
     k = env_config.pushes
     estimates, means, truths, inside, failures, unexplained = [], [], [], [], 0, 0
+    scored = []
     start = time.perf_counter()
     for i in tqdm(range(episodes), desc=f"{model} on {setting.name}", disable=not progress):
         with warnings.catch_warnings():
@@ -620,6 +622,7 @@ def evaluate_bayes(
         if result["failure"] is not None or len(result["posteriors"]) < k:
             failures += 1  # left out of the metric, as the learned models' failures are
             continue
+        scored.append(i)
         truths.append(result["truth"])
         estimates.append(np.array([p.estimate for p in result["posteriors"]]))
         means.append(result["posteriors"][-1].mean)
@@ -649,4 +652,5 @@ def evaluate_bayes(
         "filter": filt.settings(),
         "seconds_per_episode": seconds,
         "unexplained_observations": unexplained,
+        "per_episode": per_episode_record(scored, est[:, -1], truth),
     }

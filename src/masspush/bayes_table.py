@@ -14,6 +14,7 @@ from typing import Any
 
 from masspush.baselines import PAPER_TABLE
 from masspush.bayes import BAYES_MODELS, filter_for
+from masspush.metrics import paired_percentage_errors
 from masspush.settings import get_setting
 
 MODELS = ("bayes", "bayes-random", "tp+")
@@ -26,7 +27,8 @@ surrogate where an arm pushed), and `arm_model` did not act where the stiff push
 PAIRED = "-same-episodes"
 """Cache suffix of TP+ measured on the filter's episodes (the first `episodes` of the
 evaluation stream, the same chains and noise): Table 1's TP+ figure comes from 800
-episodes, and the first few dozen are not an average sample of them."""
+episodes, and the first few dozen are not an average sample of them. The two are compared
+on the episodes both scored (`paired_percentage_errors`)."""
 
 
 def measure(
@@ -38,18 +40,23 @@ def measure(
     suffix: str = "",
 ) -> dict[str, Any]:
     """One setting and model on `episodes` fresh evaluation episodes, cached under the
-    model's name and `suffix`."""
+    model's name and `suffix`; for the paired comparison (the filter, and TP+ on its
+    episodes) with each episode's estimate."""
     from masspush.evaluate import evaluate
+
+    paired = model == "bayes" or suffix == PAIRED
 
     path = Path(root) / "results" / "bayes" / f"{setting}-{model}{suffix}.json"
     if path.exists():
         cached = json.loads(path.read_text())
-        if cached.get("requested_episodes") == episodes and (
-            model not in BAYES_MODELS
-            or {**ADDED_SETTINGS, **cached.get("filter", {})} == filter_settings(setting)
-        ):
+        if (
+            cached.get("requested_episodes") == episodes
+            and (model not in BAYES_MODELS
+                 or {**ADDED_SETTINGS, **cached.get("filter", {})} == filter_settings(setting))
+            and (not paired or "per_episode" in cached)
+        ):  # fmt: skip
             return cached
-    result = evaluate(setting, model, episodes=episodes, seed=seed)
+    result = evaluate(setting, model, episodes=episodes, seed=seed, per_episode=paired)
     result["requested_episodes"] = episodes
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(result, indent=2) + "\n")
@@ -70,7 +77,8 @@ def table_markdown(rows: list[dict[str, Any]]) -> str:
         return "not yet" if value is None else f"{100 * value:.0f} %"
 
     lines = [
-        "| setting | TP+ ours / paper | Bayes, info-seeking | TP+, the same episodes "
+        "| setting | TP+ ours / paper | Bayes, info-seeking "
+        "| Bayes / TP+ on the episodes both scored (how many) "
         "| Bayes, random pushes "
         "| coverage of 90 % intervals: Bayes / Bayes-random / TP+ (Dirichlet) "
         "| Bayes s per episode | episodes (Bayes) |",
@@ -79,10 +87,16 @@ def table_markdown(rows: list[dict[str, Any]]) -> str:
     for r in rows:
         b, br, tp = r.get("bayes"), r.get("bayes-random"), r.get("tp+")
         same = r.get("tp+" + PAIRED)
+        if b and same and "per_episode" in b and "per_episode" in same:
+            bayes_err, tp_err, n = paired_percentage_errors(b["per_episode"],
+                                                            same["per_episode"])  # fmt: skip
+            paired = f"{bayes_err:.2f} / {tp_err:.2f} ({n})"
+        else:
+            paired = "not yet"
         lines.append(
             f"| {r['setting']} | {num(tp and tp['percentage_error'])} / "
             f"{PAPER_TABLE[r['setting']]['tp+']:.2f} "
-            f"| **{num(b and b['percentage_error'])}** | {num(same and same['percentage_error'])} "
+            f"| **{num(b and b['percentage_error'])}** | {paired} "
             f"| {num(br and br['percentage_error'])} "
             f"| {pct(b and b['coverage'])} / {pct(br and br['coverage'])} / "
             f"{pct(tp and tp.get('coverage'))} "

@@ -494,11 +494,23 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         settings_file=args.settings_file,
         workers=args.workers,
         bayes=bayes_options(args.bayes),
+        per_episode=args.per_episode or args.paired_with is not None,
     )
+    if args.paired_with is not None:
+        from masspush.metrics import paired_percentage_errors
+
+        other = json.loads(Path(args.paired_with).read_text())
+        if "per_episode" not in other:
+            raise SystemExit(f"{args.paired_with} has no per-episode record (--per-episode)")
+        own, theirs, n = paired_percentage_errors(result["per_episode"], other["per_episode"])
+        result["paired"] = {"with": other.get("model"), "episodes": n,
+                            "percentage_error": own, "their_percentage_error": theirs}  # fmt: skip
     if args.json:
         print(json.dumps(result))
     else:
         for key, value in result.items():
+            if key == "per_episode":  # one line per episode: for --json only
+                continue
             print(f"{key:34s} {value}")
     return 0
 
@@ -711,6 +723,15 @@ def build_parser() -> argparse.ArgumentParser:
         "--bayes", action="append", metavar="KEY=VALUE",
         help="change a BayesConfig field of the particle filter (repeatable), "
         "e.g. --bayes likelihood_power=0.6",
+    )  # fmt: skip
+    ev.add_argument(
+        "--per-episode", action="store_true",
+        help="record each scored episode's estimate and truth (the filter always does)",
+    )  # fmt: skip
+    ev.add_argument(
+        "--paired-with", metavar="JSON", default=None,
+        help="an earlier `evaluate --json` of another model on the same setting, seed and "
+        "episodes: also score both on the episodes both scored",
     )  # fmt: skip
     ev.set_defaults(func=cmd_evaluate)
 

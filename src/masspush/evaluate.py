@@ -58,8 +58,6 @@ def model_policy(meta: dict[str, Any], model_file: str | os.PathLike):
 def model_and_policy(model: str | os.PathLike, setting: str):
     """A model (shipped name or path) for `setting`: its predictor, metadata and the
     policy it was trained with (`model_policy`)."""
-    from masspush.predictor import load_model
-
     path = resolve_model(model, setting)
     predictor, meta = load_model(path, setting)
     return predictor, meta, model_policy(meta, path)
@@ -74,10 +72,13 @@ def evaluate(
     settings_file: str | os.PathLike | None = None,
     workers: int | None = None,
     bayes: dict[str, Any] | None = None,
+    per_episode: bool = False,
 ) -> dict[str, Any]:
     """Run `episodes` fresh episodes with the model's policy and report every metric.
     `model` "bayes" / "bayes-random" is the particle filter (`masspush.bayes`), its
-    configuration changed by `bayes` (BayesConfig fields) where given."""
+    configuration changed by `bayes` (BayesConfig fields) where given. `per_episode` adds
+    each scored episode's index, final estimate and truth (`per_episode_record`), which the
+    filter always reports, so that two models can be compared on the same episodes."""
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
     spec = setting if isinstance(setting, Setting) else get_setting(setting, settings_file)
@@ -103,7 +104,7 @@ def evaluate(
 
     if head_path(path).exists():  # the model's learned uncertainty
         extra["coverage"] = coverage(predictor, load_head(head_path(path), spec.name), good)
-    return {
+    result = {
         "setting": spec.name,
         "model": str(model),
         "model_file": str(path),
@@ -117,4 +118,19 @@ def evaluate(
             percentage_error(predictions[:, k], truth) for k in range(predictions.shape[1])
         ],
         **extra,
+    }
+    if per_episode:
+        result["per_episode"] = per_episode_record(
+            np.flatnonzero(run.ok), predictions[:, -1], truth
+        )
+    return result
+
+
+def per_episode_record(index, estimates, truths) -> dict[str, list]:
+    """Scored episodes (their index in the evaluation stream), final estimates and truths,
+    as JSON lists."""
+    return {
+        "index": [int(i) for i in index],
+        "estimate": np.asarray(estimates, float).round(6).tolist(),
+        "truth": np.asarray(truths, float).round(6).tolist(),
     }

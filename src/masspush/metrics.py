@@ -48,3 +48,23 @@ def all_metrics(pred: np.ndarray, true: np.ndarray) -> dict[str, float]:
         "constant_floor_relative_error": relative_error(const, true),
         "constant_floor_mae": mae(const, true),
     }
+
+
+def paired_percentage_errors(a: dict, b: dict) -> tuple[float, float, int]:
+    """The paper's metric for two models on the episodes both scored, from their
+    per-episode records (index, estimate, truth): its scale, the mean of 1 / true share,
+    depends on which episodes are in the batch, so models that left out different failed
+    episodes are compared only on the common ones. Returns (error of a, error of b, n)."""
+    common = sorted(set(a["index"]) & set(b["index"]))
+    if not common:
+        raise ValueError("the two records share no episode")
+
+    def rows(record, key):
+        where = {i: k for k, i in enumerate(record["index"])}
+        return np.array([record[key][where[i]] for i in common], dtype=float)
+
+    truth = rows(a, "truth")
+    if not np.allclose(truth, rows(b, "truth"), atol=1e-5):
+        raise ValueError("the records disagree on the truth: not the same episodes")
+    return (percentage_error(rows(a, "estimate"), truth),
+            percentage_error(rows(b, "estimate"), truth), len(common))  # fmt: skip
