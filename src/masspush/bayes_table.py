@@ -45,7 +45,6 @@ def measure(
     from masspush.evaluate import evaluate
 
     paired = model == "bayes" or suffix == PAIRED
-
     path = Path(root) / "results" / "bayes" / f"{setting}-{model}{suffix}.json"
     if path.exists():
         cached = json.loads(path.read_text())
