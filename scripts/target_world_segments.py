@@ -75,6 +75,7 @@ def main() -> None:
                 robot = TargetWorldRobot(setting, seed=100_000 * c, masses=masses)
             else:  # the training world's episodes end after the setting's pushes: allow all
                 robot = SimRobot(setting, seed=100_000 * c, masses=masses)
+                robot.env.close()
                 robot.env = ChainEnv.from_config(
                     replace(setting.env_config(), pushes=pushes * args.segments)
                 )

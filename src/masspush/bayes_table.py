@@ -31,6 +31,11 @@ episodes, and the first few dozen are not an average sample of them. The two are
 on the episodes both scored (`paired_percentage_errors`)."""
 
 
+def cache_path(root: str | Path, setting: str, model: str, suffix: str = "") -> Path:
+    """Where one setting's and model's measurement is cached."""
+    return Path(root) / "results" / "bayes" / f"{setting}-{model}{suffix}.json"
+
+
 def measure(
     setting: str,
     model: str,
@@ -45,7 +50,7 @@ def measure(
     from masspush.evaluate import evaluate
 
     paired = model == "bayes" or suffix == PAIRED
-    path = Path(root) / "results" / "bayes" / f"{setting}-{model}{suffix}.json"
+    path = cache_path(root, setting, model, suffix)
     if path.exists():
         cached = json.loads(path.read_text())
         if (
@@ -123,7 +128,7 @@ def bayes_table(
         if "tp+" in models:
             runs.append(("tp+", episodes, PAIRED))
         for model, n, suffix in runs:
-            path = Path(root) / "results" / "bayes" / f"{setting}-{model}{suffix}.json"
+            path = cache_path(root, setting, model, suffix)
             if measure_missing:
                 row[model + suffix] = measure(setting, model, n, root, suffix=suffix)
             elif path.exists():

@@ -79,15 +79,13 @@ def run_randomised(
 ) -> Episodes:  # fmt: skip
     """Episodes `indices` of the model's policy in randomised worlds, as the robot saw them
     (observations with the world's noise and bias, the told link lengths)."""
-    from masspush.evaluate import model_policy
-    from masspush.predictor import load_model
+    from masspush.evaluate import model_and_policy
     from masspush.robot import run_estimation
     from masspush.settings import get_setting
     from masspush.target_world import TargetWorldRobot
 
     setting_ = get_setting(setting)
-    predictor, meta = load_model(model_file, setting_.name)
-    policy = model_policy(meta, model_file)
+    predictor, _, policy = model_and_policy(model_file, setting_.name)
     pushes = setting_.env_config().pushes
     robot = TargetWorldRobot(setting_, world=ranges)
     rows = []
