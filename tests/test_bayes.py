@@ -296,3 +296,58 @@ def test_the_estimate_is_taken_before_resampling(monkeypatch):
     # The resampled cloud's own estimate differs: the jitter moved the particles.
     assert not np.allclose(filt.posterior().estimate, posterior.estimate)
     assert filt.settings()["revision"] == FILTER_REVISION
+
+
+def test_the_posterior_under_other_weights_is_theirs():
+    filt = ParticleFilter(env_config(), BayesConfig(particles=64), seed=0)
+    filt.reset(np.array([0.12, 0.14]))
+    np.testing.assert_array_equal(filt.posterior(filt.weights).estimate, filt.posterior().estimate)
+    one = np.zeros(64)
+    one[5] = 1.0
+    post = filt.posterior(one)
+    np.testing.assert_allclose(post.estimate, filt.shares()[5])
+    np.testing.assert_allclose([post.low, post.high], [filt.shares()[5]] * 2)
+    assert post.ess == pytest.approx(1.0)
+
+
+def pushes_log_lik(filt: ParticleFilter) -> np.ndarray:
+    """Each particle's log-likelihood under the filter's pushes so far, simulated afresh."""
+    total = np.zeros(len(filt.masses))
+    for start, action, observed, sigma, power in filt.pushes:
+        actions = np.repeat(action[None], len(filt.masses), 0)
+        predicted, failed = filt.simulate(start, actions, filt.masses, filt.friction)
+        term = power * filt._log_lik(config_difference(observed[None], predicted) / sigma)
+        total += np.where(failed, -np.inf, term)
+    return total
+
+
+def test_resample_move_keeps_each_particle_s_likelihood_of_the_pushes_made():
+    filt = ParticleFilter(env_config(), replace(SMALL, move_sweeps=2), seed=0)
+    filt.reset(np.array([0.12, 0.12]))
+    seen = np.array([0.0, 0.0, 0.3, 0.2])
+    truth = (np.array([[1.0, 6.0]]), np.array([0.8]))
+    for action in ([0.3, 0.5], [-0.4, -0.6]):
+        predicted, _ = filt.simulate(seen, np.array([action]), *truth)
+        filt.update(seen, np.array(action), predicted[0])
+        seen = predicted[0]
+    assert filt.accepted and all(0 <= a <= 1 for a in filt.accepted)
+    assert max(filt.accepted) > 0, "the walk never moved a particle"
+    np.testing.assert_allclose(filt.past_log_lik, pushes_log_lik(filt), atol=1e-6)
+
+
+def test_resample_move_stays_in_the_prior_where_the_pushes_made_are_likely():
+    likely = {}
+    for sweeps in (0, 3):
+        filt = ParticleFilter(env_config(), replace(SMALL, particles=96, move_sweeps=sweeps),
+                              seed=2)  # fmt: skip
+        filt.reset(np.array([0.12, 0.12]))
+        start = np.array([0.0, 0.0, 0.3, 0.2])
+        predicted, _ = filt.simulate(start, np.array([[0.5, 0.8]]), np.array([[1.0, 6.0]]),
+                                     np.array([0.8]))  # fmt: skip
+        filt.update(start, np.array([0.5, 0.8]), predicted[0])
+        filt._resample_and_rejuvenate()
+        low, high = filt.physics.mass_range
+        assert np.all((filt.masses >= low) & (filt.masses <= high))
+        likely[sweeps] = np.median(pushes_log_lik(filt))
+    # The jitter moves particles without asking the push; the walk's moves must answer it.
+    assert likely[3] > likely[0], likely

@@ -127,6 +127,7 @@ def test_the_cli_pairs_an_evaluation_with_an_earlier_one(model_file, tmp_path, c
     paired = result["paired"]
     assert paired["episodes"] == result["episodes"]
     assert paired["percentage_error"] == pytest.approx(paired["their_percentage_error"])
+    assert paired["difference_95_interval"] == pytest.approx([0.0, 0.0], abs=1e-9)
     # The record keeps 6 decimals of each share, so the paired figure agrees to rounding.
     assert paired["percentage_error"] == pytest.approx(result["percentage_error"], rel=1e-4)
     bare = tmp_path / "bare.json"

@@ -60,3 +60,26 @@ def test_paired_errors_use_only_the_episodes_both_scored():
         paired_percentage_errors(a, {**b, "truth": [[0.3, 0.7], [0.4, 0.6]]})
     with pytest.raises(ValueError, match="share no episode"):
         paired_percentage_errors(a, {"index": [7], "truth": [[0.5, 0.5]], "estimate": [[0.5, 0.5]]})
+
+
+def test_the_paired_difference_interval_separates_only_what_differs():
+    from masspush.metrics import paired_difference_interval
+
+    rng = np.random.default_rng(3)
+    share = rng.uniform(0.1, 0.9, 200)
+    truth = np.column_stack([share, 1 - share])
+
+    def record(noise):
+        e = np.clip(share + noise, 0.01, 0.99)
+        return {"index": list(range(200)), "truth": truth.tolist(),
+                "estimate": np.column_stack([e, 1 - e]).tolist()}  # fmt: skip
+
+    good, bad = record(rng.normal(0, 0.01, 200)), record(rng.normal(0, 0.05, 200))
+    twin = record(rng.normal(0, 0.01, 200))
+    low, high = paired_difference_interval(good, bad)
+    assert high < 0  # the better model's error minus the worse one's
+    low, high = paired_difference_interval(good, twin)
+    assert low < 0 < high  # equally good models: the interval holds 0
+    assert paired_difference_interval(good, twin) == (low, high)  # seeded
+    with pytest.raises(ValueError, match="level"):
+        paired_difference_interval(good, bad, level=1.0)

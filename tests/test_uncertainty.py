@@ -11,6 +11,7 @@ from masspush.rollout import EVAL, TRAIN, RandomPolicy, run_episodes
 from masspush.settings import get_setting
 from masspush.uncertainty import (
     HeadConfig,
+    LearnedPosterior,
     coverage,
     fit_head,
     head_path,
@@ -65,6 +66,26 @@ def test_evaluate_reports_coverage_when_the_model_has_a_head(fitted, tmp_path, m
     assert "coverage" not in evaluate(SETTING.name, "rp+", episodes=20)
     save_head(head_path(models / SETTING.name / "rp+.pt"), head, {"setting": SETTING.name})
     assert 0 <= evaluate(SETTING.name, "rp+", episodes=20)["coverage"] <= 1
+
+
+def test_the_learned_density_peaks_at_the_models_estimate(fitted):
+    predictor, head, test = fitted
+    learned = LearnedPosterior(predictor, head)
+    one = test.select(np.arange(len(test)) == 0)
+    history = one.history(one.observations, one.actions, one.lengths)
+    alpha = learned.concentration(history)
+    estimate = predictor.predict(one)[0, -1]
+    np.testing.assert_allclose(alpha / alpha.sum(), estimate, atol=1e-5)
+    # The Dirichlet's mode, near its mean for a sharp one, beats points away from it.
+    mode = (alpha - 1) / (alpha.sum() - len(alpha))
+    shares = np.array([mode, [0.5, 0.5], [0.9, 0.1], [0.1, 0.9]])
+    density = learned.log_density(history, shares)
+    assert np.argmax(density) == 0 and np.all(np.isfinite(density))
+
+
+def test_a_model_without_a_head_is_refused_with_the_command_that_fits_one():
+    with pytest.raises(ValueError, match="masspush calibrate --setting 2link-1-10 --model rp"):
+        LearnedPosterior.load("rp", SETTING.name)
 
 
 def test_bad_head_configs_are_refused():

@@ -68,6 +68,14 @@ class BayesConfig:
     """Resample when the effective sample size falls below this fraction of particles."""
     shrink: float = 0.9
     """Liu-West kernel: a particle moves to a*theta + (1-a)*mean + N(0, (1-a^2) cov)."""
+    move_sweeps: int = 0
+    """Resample-move [Gilks & Berzuini 2001]: after resampling, this many Metropolis-Hastings
+    sweeps of a Gaussian random walk in log-parameter space, each proposal accepted by its
+    likelihood under every push so far (simulated again, each from its observed start),
+    instead of the Liu-West jitter, which moves particles without asking the pushes already
+    made. 0: Liu-West."""
+    move_scale: float = 0.5
+    """The random walk's step: this times the resampled particles' covariance's root."""
     unexplained_quantile: float = 0.999
     """An observation is unexplained when even the best particle's chi-square is beyond this
     quantile; its update is then tempered."""
@@ -122,6 +130,8 @@ class BayesConfig:
         for name in ("ess_fraction", "shrink", "unexplained_quantile", "min_ess", "credible"):
             if not 0 < getattr(self, name) < 1:
                 raise ValueError(f"{name} must be in (0, 1), got {getattr(self, name)!r}")
+        if self.move_sweeps < 0 or not self.move_scale > 0:
+            raise ValueError("move_sweeps must be >= 0 and move_scale > 0")
         if not 0 < self.max_push <= 1:
             raise ValueError(f"max_push must be in (0, 1], got {self.max_push}")
         if self.tail_dof is not None and self.tail_dof <= 0:
@@ -204,6 +214,13 @@ class ParticleFilter:
         self.friction = self.rng.uniform(*self.physics.friction_range, size=m)
         self.log_w = np.zeros(m)
         self.warnings = 0
+        self.past_log_lik = np.zeros(m)
+        """Each particle's log-likelihood under the pushes so far, as weighed."""
+        self.pushes: list[tuple] = []
+        """(start, action, observed, sigma, power) of each push so far, to weigh a moved
+        particle against them."""
+        self.accepted: list[float] = []
+        """Acceptance rate of each Metropolis-Hastings sweep since `reset`."""
 
     @property
     def weights(self) -> np.ndarray:
@@ -212,15 +229,17 @@ class ParticleFilter:
 
     @property
     def ess(self) -> float:
-        w = self.weights
-        return float(1.0 / np.sum(w * w))
+        return _ess(self.log_w)
 
     def shares(self, masses: np.ndarray | None = None) -> np.ndarray:
         masses = self.masses if masses is None else masses
         return masses / masses.sum(axis=1, keepdims=True)
 
-    def posterior(self) -> Posterior:
-        w, shares = self.weights, self.shares()
+    def posterior(self, w: np.ndarray | None = None) -> Posterior:
+        """The estimate and intervals under normalised weights `w` (the particles' own by
+        default; `scripts/pool_learned.py` passes others)."""
+        w = self.weights if w is None else w
+        shares = self.shares()
         tail = (1 - self.config.credible) / 2
         low, high = (
             np.array([_weighted_quantile(shares[:, j], w, q) for j in range(shares.shape[1])])
@@ -228,7 +247,7 @@ class ParticleFilter:
         )
         mean, median = w @ shares, simplex_median(shares, w)
         estimate = median if self.config.point == "median" else mean
-        return Posterior(estimate, mean, median, low, high, self.ess)
+        return Posterior(estimate, mean, median, low, high, float(1.0 / np.sum(w * w)))
 
     # --- simulation -----------------------------------------------------------------------
     def simulate(
@@ -270,15 +289,22 @@ class ParticleFilter:
         """RMS change of each outcome component when the start pose is off by the sensing
         noise and the action by the actuation noise: how unpredictable a push is for
         reasons other than the unknowns (large for pushes that make links collide)."""
+        diff = self.noise_effect(start, actions, masses, friction, nominal, failed)
+        return np.sqrt(np.mean(diff**2, axis=0)) if len(diff) else np.full(len(start), np.inf)
+
+    def noise_effect(
+        self, start: np.ndarray, actions: np.ndarray, masses: np.ndarray, friction: np.ndarray,
+        nominal: np.ndarray, failed: np.ndarray,
+    ) -> np.ndarray:  # fmt: skip
+        """(k, d) change of the outcomes `nominal` when these chains are pushed again from
+        `start` and with `actions` jittered by the sensing and actuation noise; rows where
+        either push failed are left out."""
         m = len(masses)
         starts = start[None] + self.rng.normal(0, self.obs_sigma, (m, len(start)))
         noisy = np.clip(actions + self.rng.normal(0, self.env.action_noise, actions.shape), -1, 1)
         perturbed, bad = self.simulate(starts, noisy, masses, friction)
         ok = ~(bad | failed)
-        if not ok.any():
-            return np.full(len(start), np.inf)
-        diff = config_difference(perturbed[ok], nominal[ok])
-        return np.sqrt(np.mean(diff**2, axis=0))
+        return config_difference(perturbed[ok], nominal[ok])
 
     # --- the update -----------------------------------------------------------------------
     def update(self, start: np.ndarray, action: np.ndarray, observed: np.ndarray) -> Posterior:
@@ -307,13 +333,22 @@ class ParticleFilter:
                 UnexplainedObservationWarning,
                 stacklevel=2,
             )
-            log_lik = self._temper(log_lik)
+            log_lik, power = self._temper(log_lik)
+        else:
+            power = 1.0
+        self.pushes.append((np.asarray(start, float), np.asarray(action, float),
+                            np.asarray(observed, float), sigma, power))  # fmt: skip
+        return self._weigh(log_lik)
+
+    def _weigh(self, log_lik: np.ndarray) -> Posterior:
+        """Multiply the weights by a push's likelihood; the estimate; resample if degenerate."""
+        self.past_log_lik = self.past_log_lik + log_lik
         self.log_w = self.log_w + log_lik
         self.log_w -= self.log_w.max()
         # The estimate comes from the weighted particles, before resampling and jitter add
         # their noise to the cloud (the standard SMC practice [Doucet & Johansen 2011]).
         posterior = self.posterior()
-        if self.ess < self.config.ess_fraction * m:
+        if self.ess < self.config.ess_fraction * self.config.particles:
             self._resample_and_rejuvenate()
         return posterior
 
@@ -337,8 +372,9 @@ class ParticleFilter:
             return -0.5 * beta * np.sum(residual**2, axis=-1)
         return -0.5 * beta * (nu + 1) * np.sum(np.log1p(residual**2 / nu), axis=-1)
 
-    def _temper(self, log_lik: np.ndarray) -> np.ndarray:
-        """Scale the log-likelihood down until the updated weights keep `min_ess`."""
+    def _temper(self, log_lik: np.ndarray) -> tuple[np.ndarray, float]:
+        """Scale the log-likelihood down until the updated weights keep `min_ess`; the
+        scaled log-likelihood and the scale."""
         target = self.config.min_ess * len(log_lik)
         lo, hi = 0.0, 1.0
         for _ in range(40):
@@ -349,23 +385,57 @@ class ParticleFilter:
                 lo = beta
             else:
                 hi = beta
-        return lo * log_lik
+        return lo * log_lik, lo
 
     def _resample_and_rejuvenate(self) -> None:
         m, a = self.config.particles, self.config.shrink
         index = _systematic(self.weights, self.rng)
         theta = np.log(np.column_stack([self.masses[index], self.friction[index]]))
-        mean = theta.mean(axis=0)
+        self.past_log_lik = self.past_log_lik[index]
+        self.log_w = np.zeros(m)
         cov = np.cov(theta, rowvar=False) + 1e-10 * np.eye(theta.shape[1])
+        if self.config.move_sweeps:
+            for _ in range(self.config.move_sweeps):
+                theta = self._move(theta, cov)
+            return
+        mean = theta.mean(axis=0)
         theta = a * theta + (1 - a) * mean
         theta += self.rng.multivariate_normal(np.zeros(len(mean)), (1 - a * a) * cov, size=m)
-        lows = np.log([self.physics.mass_range[0]] * self.physics.n_links
-                      + [self.physics.friction_range[0]])  # fmt: skip
-        highs = np.log([self.physics.mass_range[1]] * self.physics.n_links
-                       + [self.physics.friction_range[1]])  # fmt: skip
-        theta = _reflect(theta, lows, highs)
+        theta = _reflect(theta, *self._log_box())
+        self._set(theta)
+
+    def _log_box(self) -> tuple[np.ndarray, np.ndarray]:
+        """The prior's box in log-parameter space: lows, highs."""
+        n, (lo, hi), (flo, fhi) = (self.physics.n_links, self.physics.mass_range,
+                                   self.physics.friction_range)  # fmt: skip
+        return np.log([lo] * n + [flo]), np.log([hi] * n + [fhi])
+
+    def _set(self, theta: np.ndarray) -> None:
         self.masses, self.friction = np.exp(theta[:, :-1]), np.exp(theta[:, -1])
-        self.log_w = np.zeros(m)
+
+    def _move(self, theta: np.ndarray, cov: np.ndarray) -> np.ndarray:
+        """One Metropolis-Hastings sweep over equally weighted particles `theta` (log
+        parameters), targeting prior x the likelihood of every push so far as it was
+        weighed (its sigma and power). The walk is symmetric (reflection at the box keeps
+        it so); the prior, uniform in masses and friction, has density exp(sum theta) in
+        log space."""
+        m = len(theta)
+        step = self.config.move_scale * np.linalg.cholesky(cov)
+        proposal = _reflect(theta + self.rng.normal(size=theta.shape) @ step.T, *self._log_box())
+        masses, friction = np.exp(proposal[:, :-1]), np.exp(proposal[:, -1])
+        log_lik = np.zeros(m)
+        for start, action, observed, sigma, power in self.pushes:
+            predicted, failed = self.simulate(start, np.repeat(action[None], m, 0), masses,
+                                              friction)  # fmt: skip
+            term = power * self._log_lik(config_difference(observed[None], predicted) / sigma)
+            log_lik += np.where(failed, -np.inf, term)
+        log_ratio = log_lik + proposal.sum(axis=1) - self.past_log_lik - theta.sum(axis=1)
+        accept = np.log(self.rng.uniform(size=m)) < log_ratio
+        theta = np.where(accept[:, None], proposal, theta)
+        self.past_log_lik = np.where(accept, log_lik, self.past_log_lik)
+        self.accepted.append(float(accept.mean()))
+        self._set(theta)
+        return theta
 
     # --- looking ahead ----------------------------------------------------------------------
     def expected_variance(self, start: np.ndarray, actions: np.ndarray) -> np.ndarray:
@@ -461,6 +531,12 @@ def simplex_median(shares: np.ndarray, weights: np.ndarray) -> np.ndarray:
         lo, hi = (mid, hi) if point(mid).sum() < 1 else (lo, mid)
     x = point((lo + hi) / 2)
     return x / x.sum()
+
+
+def _ess(log_w: np.ndarray) -> float:
+    w = np.exp(log_w - log_w.max())
+    w /= w.sum()
+    return float(1.0 / np.sum(w * w))
 
 
 def _systematic(weights: np.ndarray, rng: np.random.Generator, m: int | None = None) -> np.ndarray:

@@ -14,14 +14,16 @@ from typing import Any
 
 from masspush.baselines import PAPER_TABLE
 from masspush.bayes import BAYES_MODELS, filter_for
-from masspush.metrics import paired_percentage_errors
+from masspush.metrics import paired_difference_interval, paired_percentage_errors
 from masspush.settings import get_setting
 
 MODELS = ("bayes", "bayes-random", "tp+")
-ADDED_SETTINGS = {"arm_model": "arm", "simulated_pusher": "stiff"}
-"""Filter settings recorded only since the filter could simulate an arm, with the values
-that describe the measurements made before: they simulated the stiff pusher (an arm's
-surrogate where an arm pushed), and `arm_model` did not act where the stiff pusher pushes."""
+ADDED_SETTINGS = {"arm_model": "arm", "simulated_pusher": "stiff", "move_sweeps": 0,
+                  "move_scale": 0.5}  # fmt: skip
+"""Filter settings recorded only since later versions, with the values that describe the
+measurements made before: they simulated the stiff pusher (an arm's surrogate where an arm
+pushed), `arm_model` did not act where the stiff pusher pushes, and resampling jittered the
+particles (Liu-West) instead of moving them by Metropolis-Hastings."""
 
 
 PAIRED = "-same-episodes"
@@ -82,7 +84,7 @@ def table_markdown(rows: list[dict[str, Any]]) -> str:
 
     lines = [
         "| setting | TP+ ours / paper | Bayes, info-seeking "
-        "| Bayes / TP+ on the episodes both scored (how many) "
+        "| Bayes / TP+ on the episodes both scored (how many; 95 % interval of the difference) "
         "| Bayes, random pushes "
         "| coverage of 90 % intervals: Bayes / Bayes-random / TP+ (Dirichlet) "
         "| Bayes s per episode | episodes (Bayes) |",
@@ -94,7 +96,8 @@ def table_markdown(rows: list[dict[str, Any]]) -> str:
         if b and same and "per_episode" in b and "per_episode" in same:
             bayes_err, tp_err, n = paired_percentage_errors(b["per_episode"],
                                                             same["per_episode"])  # fmt: skip
-            paired = f"{bayes_err:.2f} / {tp_err:.2f} ({n})"
+            low, high = paired_difference_interval(b["per_episode"], same["per_episode"])
+            paired = f"{bayes_err:.2f} / {tp_err:.2f} ({n}; {low:+.2f} to {high:+.2f})"
         else:
             paired = "not yet"
         lines.append(

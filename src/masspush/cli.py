@@ -497,14 +497,20 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         per_episode=args.per_episode or args.paired_with is not None,
     )
     if args.paired_with is not None:
-        from masspush.metrics import paired_percentage_errors
+        from masspush.metrics import paired_difference_interval, paired_percentage_errors
 
         other = json.loads(Path(args.paired_with).read_text())
         if "per_episode" not in other:
             raise SystemExit(f"{args.paired_with} has no per-episode record (--per-episode)")
-        own, theirs, n = paired_percentage_errors(result["per_episode"], other["per_episode"])
-        result["paired"] = {"with": other.get("model"), "episodes": n,
-                            "percentage_error": own, "their_percentage_error": theirs}  # fmt: skip
+        mine, theirs = result["per_episode"], other["per_episode"]
+        own, their_error, n = paired_percentage_errors(mine, theirs)
+        result["paired"] = {
+            "with": other.get("model"),
+            "episodes": n,
+            "percentage_error": own,
+            "their_percentage_error": their_error,
+            "difference_95_interval": paired_difference_interval(mine, theirs),
+        }
     if args.json:
         print(json.dumps(result))
     else:

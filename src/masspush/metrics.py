@@ -50,11 +50,8 @@ def all_metrics(pred: np.ndarray, true: np.ndarray) -> dict[str, float]:
     }
 
 
-def paired_percentage_errors(a: dict, b: dict) -> tuple[float, float, int]:
-    """The paper's metric for two models on the episodes both scored, from their
-    per-episode records (index, estimate, truth): its scale, the mean of 1 / true share,
-    depends on which episodes are in the batch, so models that left out different failed
-    episodes are compared only on the common ones. Returns (error of a, error of b, n)."""
+def _paired_rows(a: dict, b: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(estimates of a, estimates of b, truths) on the episodes both records scored."""
     common = sorted(set(a["index"]) & set(b["index"]))
     if not common:
         raise ValueError("the two records share no episode")
@@ -66,5 +63,33 @@ def paired_percentage_errors(a: dict, b: dict) -> tuple[float, float, int]:
     truth = rows(a, "truth")
     if not np.allclose(truth, rows(b, "truth"), atol=1e-5):
         raise ValueError("the records disagree on the truth: not the same episodes")
-    return (percentage_error(rows(a, "estimate"), truth),
-            percentage_error(rows(b, "estimate"), truth), len(common))  # fmt: skip
+    return rows(a, "estimate"), rows(b, "estimate"), truth
+
+
+def paired_percentage_errors(a: dict, b: dict) -> tuple[float, float, int]:
+    """The paper's metric for two models on the episodes both scored, from their
+    per-episode records (index, estimate, truth): its scale, the mean of 1 / true share,
+    depends on which episodes are in the batch, so models that left out different failed
+    episodes are compared only on the common ones. Returns (error of a, error of b, n)."""
+    est_a, est_b, truth = _paired_rows(a, b)
+    return percentage_error(est_a, truth), percentage_error(est_b, truth), len(truth)
+
+
+def paired_difference_interval(
+    a: dict, b: dict, level: float = 0.95, resamples: int = 4000, seed: int = 0
+) -> tuple[float, float]:
+    """Bootstrap interval of (error of a) - (error of b) in the paper's metric, on the
+    episodes both scored: the episodes are resampled with replacement, both models scored
+    on each resample. An interval holding 0 says that these episodes do not tell the two
+    apart."""
+    if not 0 < level < 1:
+        raise ValueError(f"level must be in (0, 1), got {level}")
+    est_a, est_b, truth = _paired_rows(a, b)
+    rng = np.random.default_rng(seed)
+    diffs = np.empty(resamples)
+    for r in range(resamples):
+        k = rng.integers(0, len(truth), len(truth))
+        diffs[r] = percentage_error(est_a[k], truth[k]) - percentage_error(est_b[k], truth[k])
+    tail = (1 - level) / 2
+    low, high = np.quantile(diffs, [tail, 1 - tail])
+    return float(low), float(high)

@@ -141,6 +141,40 @@ def coverage(
     return float(np.mean((low <= truth) & (truth <= high)))
 
 
+class LearnedPosterior:
+    """A trained predictor with its Dirichlet head, read as a density over the mass
+    distribution given an episode's history: what the particle filter pools with its own
+    posterior (`BayesConfig.learned`)."""
+
+    def __init__(self, predictor: MassPredictor, head: PrecisionHead):
+        self.predictor, self.head = predictor, head
+
+    @classmethod
+    def load(cls, model: str | os.PathLike, setting: str) -> LearnedPosterior:
+        """A shipped model (by name) or model file for `setting`, and its head beside it."""
+        from masspush.evaluate import resolve_model
+        from masspush.predictor import load_model
+
+        path = resolve_model(model, setting)
+        predictor, _ = load_model(path, setting)
+        if not head_path(path).exists():
+            raise ValueError(
+                f"model {model!r} for {setting!r} has no Dirichlet head ({head_path(path)}); "
+                f"fit one with `masspush calibrate --setting {setting} --model {model}`"
+            )
+        return cls(predictor, load_head(head_path(path), setting))
+
+    def concentration(self, history: Episodes) -> np.ndarray:
+        """(n,) the Dirichlet's concentration after the last push of a one-episode history."""
+        return concentration(self.predictor, self.head, history)[0, -1]
+
+    def log_density(self, history: Episodes, shares: np.ndarray) -> np.ndarray:
+        """(m,) log Dirichlet density of the distributions `shares` (m, n) after the last
+        push, up to a constant."""
+        alpha = self.concentration(history)
+        return np.log(np.clip(shares, 1e-12, None)) @ (alpha - 1.0)
+
+
 def head_path(model_file: str | os.PathLike) -> Path:
     model_file = Path(model_file)
     return model_file.with_name(f"{model_file.stem}.dirichlet.pt")
