@@ -737,7 +737,8 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument(
         "--paired-with", metavar="JSON", default=None,
         help="an earlier `evaluate --json` of another model on the same setting, seed and "
-        "episodes: also score both on the episodes both scored",
+        "episodes: also score both on the episodes both scored, with a 95 %% bootstrap "
+        "interval of the difference",
     )  # fmt: skip
     ev.set_defaults(func=cmd_evaluate)
 
