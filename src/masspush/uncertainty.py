@@ -143,8 +143,8 @@ def coverage(
 
 class LearnedPosterior:
     """A trained predictor with its Dirichlet head, read as a density over the mass
-    distribution given an episode's history: what the particle filter pools with its own
-    posterior (`BayesConfig.learned`)."""
+    distribution given an episode's history (what `scripts/pool_learned.py` pools with the
+    particle filter's posterior)."""
 
     def __init__(self, predictor: MassPredictor, head: PrecisionHead):
         self.predictor, self.head = predictor, head
