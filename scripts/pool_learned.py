@@ -65,7 +65,7 @@ def main() -> None:
             np.asarray(episode["pushed"], np.float32)[None],
             np.asarray(filt.lengths, np.float32)[None],
         )
-        log_w, log_q = np.log(filt.weights + 1e-300), learned.log_density(history, filt.shares())
+        log_w, log_q = filt.log_w, learned.log_density(history, filt.shares())
         for p in powers:
             pooled = np.exp(log_w + p * log_q - np.max(log_w + p * log_q))
             episode[p] = posterior(pooled / pooled.sum())

@@ -229,7 +229,7 @@ class ParticleFilter:
 
     @property
     def ess(self) -> float:
-        return _ess(self.log_w)
+        return _ess(self.weights)
 
     def shares(self, masses: np.ndarray | None = None) -> np.ndarray:
         masses = self.masses if masses is None else masses
@@ -247,7 +247,7 @@ class ParticleFilter:
         )
         mean, median = w @ shares, simplex_median(shares, w)
         estimate = median if self.config.point == "median" else mean
-        return Posterior(estimate, mean, median, low, high, float(1.0 / np.sum(w * w)))
+        return Posterior(estimate, mean, median, low, high, _ess(w))
 
     # --- simulation -----------------------------------------------------------------------
     def simulate(
@@ -381,7 +381,7 @@ class ParticleFilter:
             beta = (lo + hi) / 2
             w = np.exp(self.log_w + beta * log_lik - np.max(self.log_w + beta * log_lik))
             w /= w.sum()
-            if 1.0 / np.sum(w * w) >= target:
+            if _ess(w) >= target:
                 lo = beta
             else:
                 hi = beta
@@ -533,9 +533,8 @@ def simplex_median(shares: np.ndarray, weights: np.ndarray) -> np.ndarray:
     return x / x.sum()
 
 
-def _ess(log_w: np.ndarray) -> float:
-    w = np.exp(log_w - log_w.max())
-    w /= w.sum()
+def _ess(w: np.ndarray) -> float:
+    """Effective sample size of normalised weights."""
     return float(1.0 / np.sum(w * w))
 
 
