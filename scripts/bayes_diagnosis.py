@@ -12,9 +12,13 @@ on-pushes: a learned model's policy pushes simulated chains (`SimRobot`, seeds f
 fidelity: the filter's simulation of the true chain (true masses and friction) from the
     true start pose with the executed push, against the world's rest pose: how exactly the
     simulator can reproduce one push at all.
+micro-state: the same pushes, the true chain started from the world's own state (its
+    height, tilt and residual velocities at rest, which no observation gives) or from parts
+    of it: what makes `fidelity`'s inexact pushes inexact.
 
     python scripts/bayes_diagnosis.py on-pushes --setting 2link-0.1-10 --model tp+ --episodes 60
     python scripts/bayes_diagnosis.py fidelity --setting 2link-0.1-10 --pushes 60
+    python scripts/bayes_diagnosis.py micro-state --setting 2link-0.1-10 --pushes 60
 """
 
 from __future__ import annotations
@@ -46,6 +50,8 @@ def on_pushes(args: argparse.Namespace) -> None:
         _pseudo_marginal(filt, args.replicas)
     if args.spread == "mad":
         _robust_spread(filt)
+    if args.spread == "particle":
+        _particle_spread(filt, args.jitters)
     robot = SimRobot(setting, seed=10_000)
     pushes = setting.env_config().pushes
     truths, learned, filtered, inside = [], [], [], []
@@ -118,6 +124,64 @@ def fidelity(args: argparse.Namespace) -> None:
         print(f"  {name}: {np.round(values, 4).tolist()}")
 
 
+def micro_state(args: argparse.Namespace) -> None:
+    import mujoco
+
+    from masspush.chain import ChainParams
+    from masspush.env import ChainEnv
+    from masspush.simulate import ChainSim
+
+    setting = get_setting(args.setting)
+    if setting.pusher != "stiff":
+        raise SystemExit(f"micro-state compares chain-only scenes: {setting.name} is pushed by "
+                         f"an arm ({setting.pusher}); take a stiff-pusher setting")  # fmt: skip
+    physics = setting.physics()
+    env = ChainEnv.from_config(setting.env_config())
+    rng = np.random.default_rng(5)
+    rows: dict[str, list[float]] = {}
+    for i in range(args.pushes):
+        _, info = env.reset(seed=1000 + i)
+        if info["failure"]:
+            continue
+        data = env.sim.data
+        world_state = {k: np.copy(getattr(data, k)) for k in ("qpos", "qvel")}
+        start = np.asarray(info["config"], float)
+        action = np.array([rng.uniform(0.3, 0.7), rng.uniform(0.3, 0.6)], np.float32)
+        _, _, _, _, after = env.step(action)
+        if after["failure"]:
+            continue
+        executed, world = np.asarray(after["push"]["action"], float), after["config"]
+        chain = ChainParams(
+            tuple(float(v) for v in info["masses"]), float(info["friction"]),
+            tuple(float(v) for v in info["lengths"]), tuple(float(v) for v in start[3:]),
+            (float(start[0]), float(start[1]), float(start[2])),
+        )  # fmt: skip
+        # What the filter does: a chain built at the observed pose and let settle.
+        variants = {"built at the pose (the filter)": {}, "the world's state": world_state,
+                    "the world's qpos, own qvel": {"qpos": world_state["qpos"]},
+                    "the world's qvel, own qpos": {"qvel": world_state["qvel"]},
+                    "the world's state, 1 mm along x": {**world_state, "dx": 1e-3}}  # fmt: skip
+        for name, state in variants.items():
+            sim = ChainSim(chain, physics)
+            for key in ("qpos", "qvel"):
+                if key in state:
+                    getattr(sim.data, key)[:] = state[key]
+            sim.data.qpos[0] += state.get("dx", 0.0)
+            mujoco.mj_forward(sim.model, sim.data)
+            sim.push(executed)
+            diff = config_difference(np.asarray(world, float), sim.config())
+            diff[0] += state.get("dx", 0.0)  # the shift itself is not an error
+            rows.setdefault(name, []).append(float(np.abs(diff).max()))
+    print(f"{setting.name}: {len(rows[next(iter(rows))])} pushes from rest; the true chain "
+          "pushed again by the executed push, from:")  # fmt: skip
+    for name, d in rows.items():
+        d = np.array(d)
+        print(
+            f"  {name}: exact (< 1e-4) {100 * np.mean(d < 1e-4):.0f} %, largest component "
+            f"off by {np.quantile(d, 0.9):.4f} at the 90th percentile, {d.max():.4f} at most"
+        )
+
+
 def _pseudo_marginal(filt: bayes.ParticleFilter, replicas: int) -> None:
     """Replace the filter's update by the pseudo-marginal one (this script's variant)."""
 
@@ -156,6 +220,43 @@ def _robust_spread(filt: bayes.ParticleFilter) -> None:
     filt.noise_spread = noise_spread
 
 
+def _particle_spread(filt: bayes.ParticleFilter, jitters: int, pseudo: float = 1.0) -> None:
+    """Each particle's own spread: its outcome simulated again `jitters` times from a start
+    and action jittered by the sensing and actuation noise, the mean squared change shrunk
+    towards all particles' mean with `pseudo` pseudo-samples; the likelihood then carries
+    each particle's normalisation (a particle that makes the push unpredictable spreads
+    its probability over more outcomes)."""
+
+    def update(start, action, observed):
+        m, d = filt.config.particles, len(start)
+        actions = np.repeat(np.asarray(action, float)[None], m, 0)
+        predicted, failed = filt.simulate(start, actions, filt.masses, filt.friction)
+        sq, n = np.zeros((m, d)), np.zeros(m)
+        for _ in range(jitters):
+            starts = start[None] + filt.rng.normal(0, filt.obs_sigma, (m, d))
+            noisy = np.clip(actions + filt.rng.normal(0, filt.env.action_noise, actions.shape),
+                            -1, 1)  # fmt: skip
+            perturbed, bad = filt.simulate(starts, noisy, filt.masses, filt.friction)
+            ok = ~(bad | failed)
+            sq[ok] += config_difference(perturbed[ok], predicted[ok]) ** 2
+            n += ok
+        seen = n > 0
+        pooled = sq[seen].sum(0) / n[seen].sum() if seen.any() else np.full(d, 1.0)
+        spread2 = (sq + pseudo * pooled) / (n + pseudo)[:, None]
+        ok = ~failed
+        change = np.abs(config_difference(predicted[ok], start[None])).mean(axis=0) \
+            if ok.any() else np.zeros(d)  # fmt: skip
+        sigma = np.sqrt(filt.obs_sigma**2 + spread2 + (filt.motion_slack * change) ** 2)
+        log_lik = filt._log_lik(config_difference(observed[None], predicted) / sigma)
+        log_lik = log_lik - filt.likelihood_power * np.log(sigma).sum(axis=1)
+        log_lik = np.where(failed, -np.inf, log_lik)
+        finite = np.isfinite(log_lik)
+        log_lik = np.where(finite, log_lik, (log_lik[finite].min() if finite.any() else 0) - 25)
+        return filt._weigh(log_lik)
+
+    filt.update = update
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(required=True)
@@ -165,12 +266,17 @@ def main() -> None:
     one.add_argument("--episodes", type=int, default=60)
     one.add_argument("--bayes", action="append", metavar="KEY=VALUE")
     one.add_argument("--replicas", type=int, default=0, help="pseudo-marginal replicas")
-    one.add_argument("--spread", choices=("rms", "mad"), default="rms")
+    one.add_argument("--spread", choices=("rms", "mad", "particle"), default="rms")
+    one.add_argument("--jitters", type=int, default=2, help="with --spread particle")
     one.set_defaults(func=on_pushes)
     two = sub.add_parser("fidelity", help="the true chain simulated against the world")
     two.add_argument("--setting", required=True)
     two.add_argument("--pushes", type=int, default=60)
     two.set_defaults(func=fidelity)
+    three = sub.add_parser("micro-state", help="how much the unobserved rest state matters")
+    three.add_argument("--setting", required=True)
+    three.add_argument("--pushes", type=int, default=60)
+    three.set_defaults(func=micro_state)
     args = parser.parse_args()
     args.func(args)
 

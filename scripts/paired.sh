@@ -1,19 +1,23 @@
 #!/usr/bin/env bash
-# The filter and TP+ on the same first 100 evaluation episodes of every setting (seed 0),
-# each with its episodes' estimates, for docs/results.md "TP+ and the filter on the same 100
-# episodes". Resumable: a setting whose two files exist is skipped; rerun after a kill.
+# The filter and TP+ on the same first N evaluation episodes of every setting (seed 0; N:
+# EPISODES, 100 by default), each with its episodes' estimates, for docs/results.md's paired
+# comparisons. The filter's first 100 of 300 episodes are its 100-episode run (its random
+# streams carry over from episode to episode, so the runs agree where they overlap).
+# Resumable: a setting whose two files exist is skipped; rerun after a kill.
+#   SETTINGS="2link-0.1-1 2link-0.1-10" EPISODES=300 scripts/paired.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source .venv/bin/activate
 mkdir -p results/paired
+n=${EPISODES:-100}
 for s in ${SETTINGS:-2link-0.1-1 2link-1-10 2link-0.1-10 3link-0.1-1 3link-1-10 3link-0.1-10}; do
-  bayes="results/paired/$s-bayes-100.json" tp="results/paired/$s-tp+-100.json"
+  bayes="results/paired/$s-bayes-$n.json" tp="results/paired/$s-tp+-$n.json"
   if [ ! -s "$bayes" ]; then
-    masspush evaluate --setting "$s" --model bayes --episodes 100 --json > "$bayes.part"
+    masspush evaluate --setting "$s" --model bayes --episodes "$n" --json > "$bayes.part"
     mv "$bayes.part" "$bayes"
   fi
   if [ ! -s "$tp" ]; then
-    masspush evaluate --setting "$s" --model tp+ --episodes 100 --paired-with "$bayes" --json \
+    masspush evaluate --setting "$s" --model tp+ --episodes "$n" --paired-with "$bayes" --json \
       > "$tp.part"
     mv "$tp.part" "$tp"
   fi
