@@ -50,7 +50,7 @@ def all_metrics(pred: np.ndarray, true: np.ndarray) -> dict[str, float]:
     }
 
 
-def _paired_rows(a: dict, b: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def paired_rows(a: dict, b: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(estimates of a, estimates of b, truths) on the episodes both records scored."""
     common = sorted(set(a["index"]) & set(b["index"]))
     if not common:
@@ -71,7 +71,7 @@ def paired_percentage_errors(a: dict, b: dict) -> tuple[float, float, int]:
     per-episode records (index, estimate, truth): its scale, the mean of 1 / true share,
     depends on which episodes are in the batch, so models that left out different failed
     episodes are compared only on the common ones. Returns (error of a, error of b, n)."""
-    est_a, est_b, truth = _paired_rows(a, b)
+    est_a, est_b, truth = paired_rows(a, b)
     return percentage_error(est_a, truth), percentage_error(est_b, truth), len(truth)
 
 
@@ -84,7 +84,7 @@ def paired_difference_interval(
     apart."""
     if not 0 < level < 1:
         raise ValueError(f"level must be in (0, 1), got {level}")
-    est_a, est_b, truth = _paired_rows(a, b)
+    est_a, est_b, truth = paired_rows(a, b)
     rng = np.random.default_rng(seed)
     diffs = np.empty(resamples)
     for r in range(resamples):
