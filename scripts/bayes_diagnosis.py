@@ -94,18 +94,10 @@ def fidelity(args: argparse.Namespace) -> None:
     setting = get_setting(args.setting)
     env = ChainEnv.from_config(setting.env_config())
     filt = bayes.filter_for(setting, seed=0)
-    rng = np.random.default_rng(5)
     diffs = []
-    for i in range(args.pushes):
-        _, info = env.reset(seed=1000 + i)
-        if info["failure"]:
-            continue
+    for info, _, after in _pushes_from_rest(env, args.pushes):
         filt.reset(info["lengths"])
         start = np.asarray(info["config"], float)
-        action = np.array([rng.uniform(0.3, 0.7), rng.uniform(0.3, 0.6)], np.float32)
-        _, _, _, _, after = env.step(action)
-        if after["failure"]:
-            continue
         executed = np.asarray(after["push"]["action"], float)[None]
         simulated, _ = filt.simulate(start, executed, np.array([info["masses"]]),
                                      np.array([info["friction"]]))  # fmt: skip
@@ -124,10 +116,26 @@ def fidelity(args: argparse.Namespace) -> None:
         print(f"  {name}: {np.round(values, 4).tolist()}")
 
 
+def _pushes_from_rest(env, pushes: int):
+    """The fidelity probes' pushes: a fresh chain at rest (seeds from 1000), pushed once
+    where TP+ pushes (a1 in 0.3-0.7, a2 in 0.3-0.6, a fixed stream); yields the info at
+    rest, the world's state at rest (qpos, qvel) and the info after, for pushes that did
+    not fail."""
+    rng = np.random.default_rng(5)
+    for i in range(pushes):
+        _, info = env.reset(seed=1000 + i)
+        if info["failure"]:
+            continue
+        state = {k: np.copy(getattr(env.sim.data, k)) for k in ("qpos", "qvel")}
+        action = np.array([rng.uniform(0.3, 0.7), rng.uniform(0.3, 0.6)], np.float32)
+        _, _, _, _, after = env.step(action)
+        if not after["failure"]:
+            yield info, state, after
+
+
 def micro_state(args: argparse.Namespace) -> None:
     import mujoco
 
-    from masspush.chain import ChainParams
     from masspush.env import ChainEnv
     from masspush.simulate import ChainSim
 
@@ -137,25 +145,12 @@ def micro_state(args: argparse.Namespace) -> None:
                          f"an arm ({setting.pusher}); take a stiff-pusher setting")  # fmt: skip
     physics = setting.physics()
     env = ChainEnv.from_config(setting.env_config())
-    rng = np.random.default_rng(5)
     rows: dict[str, list[float]] = {}
-    for i in range(args.pushes):
-        _, info = env.reset(seed=1000 + i)
-        if info["failure"]:
-            continue
-        data = env.sim.data
-        world_state = {k: np.copy(getattr(data, k)) for k in ("qpos", "qvel")}
-        start = np.asarray(info["config"], float)
-        action = np.array([rng.uniform(0.3, 0.7), rng.uniform(0.3, 0.6)], np.float32)
-        _, _, _, _, after = env.step(action)
-        if after["failure"]:
-            continue
+    for info, world_state, after in _pushes_from_rest(env, args.pushes):
         executed, world = np.asarray(after["push"]["action"], float), after["config"]
-        chain = ChainParams(
-            tuple(float(v) for v in info["masses"]), float(info["friction"]),
-            tuple(float(v) for v in info["lengths"]), tuple(float(v) for v in start[3:]),
-            (float(start[0]), float(start[1]), float(start[2])),
-        )  # fmt: skip
+        start = np.asarray(info["config"], float)
+        chain = replace(env.chain, joint_angles=tuple(float(v) for v in start[3:]),
+                        root_pose=tuple(float(v) for v in start[:3]))  # fmt: skip
         # What the filter does: a chain built at the observed pose and let settle.
         variants = {"built at the pose (the filter)": {}, "the world's state": world_state,
                     "the world's qpos, own qvel": {"qpos": world_state["qpos"]},
@@ -193,10 +188,7 @@ def _pseudo_marginal(filt: bayes.ParticleFilter, replicas: int) -> None:
         actions = np.clip(actions + filt.rng.normal(0, filt.env.action_noise, actions.shape), -1, 1)
         predicted, failed = filt.simulate(starts, actions, np.repeat(filt.masses, replicas, 0),
                                           np.repeat(filt.friction, replicas))  # fmt: skip
-        ok = ~failed
-        change = np.abs(config_difference(predicted[ok], start[None])).mean(axis=0) \
-            if ok.any() else np.zeros(len(start))  # fmt: skip
-        sigma = np.sqrt(filt.obs_sigma**2 + (filt.motion_slack * change) ** 2)
+        sigma = filt._sigma(start, predicted, failed, np.zeros(len(start)))
         log_lik = filt._log_lik(config_difference(observed[None], predicted) / sigma)
         log_lik = np.where(failed, -np.inf, log_lik).reshape(m, replicas)
         top = np.max(log_lik, axis=1, keepdims=True)
@@ -242,17 +234,11 @@ def _particle_spread(filt: bayes.ParticleFilter, jitters: int, pseudo: float = 1
             n += ok
         seen = n > 0
         pooled = sq[seen].sum(0) / n[seen].sum() if seen.any() else np.full(d, 1.0)
-        spread2 = (sq + pseudo * pooled) / (n + pseudo)[:, None]
-        ok = ~failed
-        change = np.abs(config_difference(predicted[ok], start[None])).mean(axis=0) \
-            if ok.any() else np.zeros(d)  # fmt: skip
-        sigma = np.sqrt(filt.obs_sigma**2 + spread2 + (filt.motion_slack * change) ** 2)
+        spread = np.sqrt((sq + pseudo * pooled) / (n + pseudo)[:, None])
+        sigma = filt._sigma(start, predicted, failed, spread)
         log_lik = filt._log_lik(config_difference(observed[None], predicted) / sigma)
         log_lik = log_lik - filt.likelihood_power * np.log(sigma).sum(axis=1)
-        log_lik = np.where(failed, -np.inf, log_lik)
-        finite = np.isfinite(log_lik)
-        log_lik = np.where(finite, log_lik, (log_lik[finite].min() if finite.any() else 0) - 25)
-        return filt._weigh(log_lik)
+        return filt._weigh(bayes.failure_floor(log_lik, failed | ~np.isfinite(log_lik)))
 
     filt.update = update
 

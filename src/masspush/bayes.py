@@ -319,11 +319,7 @@ class ParticleFilter:
         sigma = self._sigma(start, predicted, failed, spread)
         residual = config_difference(observed[None], predicted) / sigma
         chi = np.where(failed, np.inf, np.sum(residual**2, axis=1))
-        finite = np.isfinite(chi)
-        log_lik = self._log_lik(residual)
-        # A particle whose chain failed where the real one did not is far less likely, but
-        # a finite penalty keeps the weights defined when every particle failed.
-        log_lik = np.where(finite, log_lik, (log_lik[finite].min() if finite.any() else 0) - 25)
+        log_lik = failure_floor(self._log_lik(residual), ~np.isfinite(chi))
         dof = len(observed)
         if chi.min() > chi2_quantile(self.config.unexplained_quantile, dof):
             self.warnings += 1
@@ -531,6 +527,14 @@ def simplex_median(shares: np.ndarray, weights: np.ndarray) -> np.ndarray:
         lo, hi = (mid, hi) if point(mid).sum() < 1 else (lo, mid)
     x = point((lo + hi) / 2)
     return x / x.sum()
+
+
+def failure_floor(log_lik: np.ndarray, failed: np.ndarray) -> np.ndarray:
+    """Log-likelihoods with the `failed` particles' set 25 below the lowest of the others.
+    A particle whose chain failed where the real one did not is far less likely, but a
+    finite penalty keeps the weights defined when every particle failed."""
+    ok = ~failed
+    return np.where(ok, log_lik, (log_lik[ok].min() if ok.any() else 0) - 25)
 
 
 def _ess(w: np.ndarray) -> float:
