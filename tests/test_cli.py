@@ -78,3 +78,19 @@ def test_randomise_collects_fine_tunes_and_names_the_result(tmp_path, capsys):
     assert main([*args, "--workers", "1", "--out", str(out)]) == 0
     assert f"randomised predictor: {out / 'predictor' / 'predictor.pt'}" in capsys.readouterr().out
     assert len(list(out.glob("shard-*.npz"))) == 1
+
+
+def test_randomise_passes_the_policy_training_on(tmp_path, monkeypatch, capsys):
+    import masspush.randomise
+
+    seen = {}
+
+    def fake(config, out, workers, ship):
+        seen.update(config=config, out=out)
+        return tmp_path / "p.pt"
+
+    monkeypatch.setattr(masspush.randomise, "randomise", fake)
+    main(["randomise", "--setting", "2link-1-10", "--policy-steps", "500", "--envs", "3"])
+    assert (seen["config"].policy_steps, seen["config"].policy_envs) == (500, 3)
+    assert seen["config"].shipped_name == "tp+drp"
+    assert seen["out"] == "runs/randomise-2link-1-10-policy"

@@ -112,3 +112,22 @@ def test_an_untrained_policy_starts_at_the_initial_action(algo, predictor_file, 
     path = train_policy(CONFIG, predictor_file, tmp_path / "p", config, progress=False)
     actions = run_episodes(CONFIG, LearnedPolicy(path, algo), np.arange(4), TRAIN, 0).actions
     np.testing.assert_allclose(actions[:, 0], np.tile([0.6, -0.4], (4, 1)), atol=0.05)
+
+
+def test_the_policy_environment_pushes_in_another_world(predictor_file):
+    from masspush.target_world import TargetWorld
+
+    setting = get_setting("2link-0.1-1")
+    config = replace(CONFIG, pushes=2)
+    with pytest.raises(ValueError, match="setting"):
+        PushPolicyEnv(config, str(predictor_file), world=TargetWorld())
+    env = PushPolicyEnv(config, str(predictor_file), setting=setting.name, world=TargetWorld())
+    check_env(env, skip_render_check=True)
+    _, info = env.reset(seed=3)
+    _, base_info = PushPolicyEnv(config, str(predictor_file)).reset(seed=3)
+    assert info["mass_distribution"].tolist() != base_info["mass_distribution"].tolist()
+    _, reward, _, _, step_info = env.step(np.array([0.5, 0.5], np.float32))
+    if step_info["failure"] is None:
+        assert reward == pytest.approx(
+            paper_reward(step_info["estimate"], info["mass_distribution"])
+        )

@@ -95,3 +95,24 @@ def test_the_fine_tuned_predictor_keeps_its_policy_and_names_its_worlds(tmp_path
             RandomiseConfig(setting=SETTING, model=str(path), episodes=4, shard_size=2, steps=4),
             tmp_path / "again", workers=1, ship=True, progress=False,
         )  # fmt: skip
+
+
+def test_the_policy_can_be_trained_on_in_randomised_worlds(tmp_path):
+    from masspush.evaluate import model_and_policy
+    from masspush.randomise import SHIPPED_POLICY_NAME
+
+    config = replace(TINY, policy_steps=8, policy_envs=1, policy_rollout=4)
+    assert config.shipped_name == SHIPPED_POLICY_NAME
+    path = randomise(config, tmp_path, workers=1, progress=False)
+    _, meta, policy = model_and_policy(path, SETTING)
+    assert type(policy).__name__ == "LearnedPolicy"
+    assert (tmp_path / "policy" / "policy.zip").exists()
+    assert (path.parent / meta["policy_file"]).resolve() == tmp_path / "policy" / "policy.zip"
+    assert meta["randomised"]["policy_steps"] == 8
+    # The episodes are the new policy's pushes, not the model's own.
+    kept = collect_randomised(TINY, tmp_path / "kept", workers=1, progress=False)
+    trained = collect_randomised(config, tmp_path, workers=1, progress=False,
+                                 model_file=tmp_path / "pushing-model.pt")  # fmt: skip
+    assert not np.array_equal(kept.actions, trained.actions)
+    with pytest.raises(ValueError, match="policy_steps"):
+        RandomiseConfig(policy_steps=-1)

@@ -205,8 +205,10 @@ def cmd_randomise(args: argparse.Namespace) -> int:
         episodes=args.episodes,
         steps=args.steps,
         base_seed=args.seed,
+        policy_steps=args.policy_steps,
+        policy_envs=args.envs,
     )
-    out = args.out or f"runs/randomise-{args.setting}"
+    out = args.out or f"runs/randomise-{args.setting}" + ("-policy" if args.policy_steps else "")
     path = randomise(config, out, args.workers, ship=args.ship)
     print(f"randomised predictor: {path}")
     return 0
@@ -853,10 +855,18 @@ def build_parser() -> argparse.ArgumentParser:
     rnd.add_argument("--episodes", type=int, default=8000)
     rnd.add_argument("--steps", type=int, default=10_000, help="fine-tuning steps")
     rnd.add_argument("--seed", type=int, default=50_000_000, help="base seed of the episodes")
+    rnd.add_argument(
+        "--policy-steps", type=int, default=0,
+        help="first train the model's policy on with PPO in randomised worlds for this many "
+        "pushes (0: keep the policy); ships as tp+drp",
+    )  # fmt: skip
+    rnd.add_argument("--envs", type=int, default=8, help="PPO's parallel environments")
     rnd.add_argument("--workers", type=int, default=None, help="default: one per core")
     rnd.add_argument("--out", default=None, help="default: runs/randomise-<setting>")
     rnd.add_argument(
-        "--ship", action="store_true", help="ship the result as tp+dr beside the model"
+        "--ship",
+        action="store_true",
+        help="ship the result as tp+dr (tp+drp with --policy-steps) beside the model",
     )
     rnd.set_defaults(func=cmd_randomise)
 

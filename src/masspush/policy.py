@@ -86,11 +86,19 @@ class PushPolicyEnv(gym.Env):
     """One chain, pushed K times; observation: the history; reward: the predictor's accuracy.
 
     The predictor is loaded from `predictor_path` inside the environment (and so inside each
-    worker process of a SubprocVecEnv), frozen, on one thread."""
+    worker process of a SubprocVecEnv), frozen, on one thread.
+
+    With `world` (a `TargetWorld`, or `WorldRanges` for a world drawn per episode) and the
+    name of the `setting` that `env_config` is made from, the chains are pushed in that world
+    (`masspush.target_world.TargetWorldRobot`) instead of the training simulation.
+    """
 
     metadata: dict[str, Any] = {"render_modes": []}  # noqa: RUF012 (gymnasium's convention)
 
-    def __init__(self, env_config: EnvConfig, predictor_path: str):
+    def __init__(
+        self, env_config: EnvConfig, predictor_path: str, setting: str | None = None,
+        world: Any = None,
+    ):  # fmt: skip
         import torch
 
         from masspush.env import ChainEnv
@@ -99,7 +107,16 @@ class PushPolicyEnv(gym.Env):
         torch.set_num_threads(1)
         physics = env_config.physics
         self.env_config = env_config
-        self.chain_env = ChainEnv.from_config(env_config)
+        if world is None:
+            self.chain_env = ChainEnv.from_config(env_config)
+        else:
+            from masspush.robot_env import RobotEnv
+            from masspush.target_world import TargetWorldRobot
+
+            if setting is None:
+                raise ValueError("a world needs the name of the setting its chains come from")
+            robot = TargetWorldRobot(setting, world=world, pusher=env_config.pusher)
+            self.chain_env = RobotEnv(robot, env_config.pushes)
         self.predictor, _ = load_model(predictor_path)
         self.k, self.n, self.d = env_config.pushes, physics.n_links, physics.obs_dim
         dim = history_dim(self.n, self.k)
@@ -196,13 +213,17 @@ class PolicyConfig:
         return self.n_steps or max(2, PAPER_PPO["n_steps"] * PAPER_N_ENVS // self.n_envs)
 
 
-def make_vec_env(env_config: EnvConfig, predictor_path: str | os.PathLike, n_envs: int, seed: int):
+def make_vec_env(
+    env_config: EnvConfig, predictor_path: str | os.PathLike, n_envs: int, seed: int,
+    setting: str | None = None, world: Any = None,
+):  # fmt: skip
     """`n_envs` pushing episodes: for the stiff pusher in lockstep on the multi-threaded
-    batch path (`masspush.vec_env`), for an arm as PushPolicyEnvs in worker processes."""
+    batch path (`masspush.vec_env`), for an arm or in another world (`PushPolicyEnv`'s
+    `setting` and `world`) as PushPolicyEnvs in worker processes."""
     from stable_baselines3.common.env_util import make_vec_env as sb3_make_vec_env
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor
 
-    if env_config.pusher == "stiff":
+    if env_config.pusher == "stiff" and world is None:
         from masspush.vec_env import BatchPushVecEnv
 
         vec = BatchPushVecEnv(env_config, str(predictor_path), n_envs, seed)
@@ -215,7 +236,12 @@ def make_vec_env(env_config: EnvConfig, predictor_path: str | os.PathLike, n_env
         n_envs=n_envs,
         seed=seed,
         vec_env_cls=vec_cls,
-        env_kwargs={"env_config": env_config, "predictor_path": str(predictor_path)},
+        env_kwargs={
+            "env_config": env_config,
+            "predictor_path": str(predictor_path),
+            "setting": setting,
+            "world": world,
+        },
         vec_env_kwargs={"start_method": "fork"} if vec_cls is SubprocVecEnv else None,
     )
 
@@ -295,8 +321,11 @@ def train_policy(
     init: str | os.PathLike | None = None,
     progress: bool = True,
     meta: dict[str, Any] | None = None,
+    setting: str | None = None,
+    world: Any = None,
 ) -> Path:
-    """Train (or, from `init`, go on training) a policy against a frozen predictor.
+    """Train (or, from `init`, go on training) a policy against a frozen predictor; in the
+    training simulation, or in `world` (see `PushPolicyEnv`).
 
     Checkpoints every 10 updates (out_dir/checkpoint_<steps>_steps.zip) and resumes from
     the last; the finished policy is out_dir/policy.zip, with policy.json (what it was
@@ -308,7 +337,8 @@ def train_policy(
     final = out / "policy.zip"
     if final.exists():
         return final
-    vec_env = make_vec_env(env_config, predictor_path, config.n_envs, config.seed)
+    vec_env = make_vec_env(env_config, predictor_path, config.n_envs, config.seed, setting,
+                           world)  # fmt: skip
     try:
         checkpoints = sorted(out.glob("checkpoint_*_steps.zip"), key=_checkpoint_steps)
         start = checkpoints[-1] if checkpoints else init

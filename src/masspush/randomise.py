@@ -5,9 +5,14 @@ lab's tracker offset, contact model, friction that varies over the table) as mas
 module runs a trained model's own policy in worlds drawn per episode from
 `masspush.target_world.WorldRanges`, with the robot's view of each episode (noisy, biased
 observations; the link lengths it was told), and fine-tunes the predictor on them, so that
-it learns to read through what differs between worlds. The policy is kept as it is.
+it learns to read through what differs between worlds. The policy is kept as it is unless
+asked otherwise.
 
     masspush randomise --setting real-ur10-4push --model tp+ --episodes 8000 --ship
+
+With `--policy-steps N` the policy is trained on first, with PPO in randomised worlds
+(`masspush.robot_env`), and the episodes are the new policy's: the paper's meta-iteration
+in randomised worlds.
 
 Episodes go to NPZ shards (the `masspush.dataset` format) in `--out`; shard j holds episodes
 j*S .. (j+1)*S - 1 and episode i is fully determined by (base seed, i), so a stopped
@@ -33,6 +38,8 @@ from masspush.target_world import WorldRanges
 
 SHIPPED_NAME = "tp+dr"
 """The name a randomised predictor ships under, beside the model it was tuned from."""
+SHIPPED_POLICY_NAME = "tp+drp"
+"""... and with its policy trained on in randomised worlds too (`policy_steps`)."""
 SEED_STRIDE = 64
 """Seeds per episode: a chain that cannot be placed is redrawn with the next seed, so
 episode i owns seeds base + 64 i ... base + 64 i + 63."""
@@ -49,6 +56,14 @@ class RandomiseConfig:
     """Far from the seeds `masspush sim2real` gives the target world (0 ... ~500 000)."""
     steps: int = 10_000
     """Fine-tuning steps (batches of 256 episodes)."""
+    policy_steps: int = 0
+    """PPO pushes to go on training the model's policy in randomised worlds, against the
+    model's predictor frozen, before the episodes are collected with the new policy; 0 keeps
+    the policy as it is."""
+    policy_envs: int = 8
+    """Parallel environments for that PPO training (the arm's recipe in docs/results.md)."""
+    policy_rollout: int | None = None
+    """Pushes per environment between two PPO updates; None keeps the paper's buffer."""
     ranges: WorldRanges = field(default_factory=WorldRanges)
 
     def __post_init__(self) -> None:
@@ -57,6 +72,15 @@ class RandomiseConfig:
                 f"episodes must be >= 2, shard_size and steps >= 1; got {self.episodes}, "
                 f"{self.shard_size}, {self.steps}"
             )
+        if self.policy_steps < 0 or self.policy_envs < 1:
+            raise ValueError(
+                f"policy_steps must be >= 0 and policy_envs >= 1; got {self.policy_steps}, "
+                f"{self.policy_envs}"
+            )
+
+    @property
+    def shipped_name(self) -> str:
+        return SHIPPED_POLICY_NAME if self.policy_steps else SHIPPED_NAME
 
     @property
     def shards(self) -> int:
@@ -75,17 +99,19 @@ class RandomiseConfig:
 
 def run_randomised(
     setting: str, model_file: str | os.PathLike, ranges: WorldRanges, indices: np.ndarray,
-    base_seed: int,
+    base_seed: int, policy=None,
 ) -> Episodes:  # fmt: skip
-    """Episodes `indices` of the model's policy in randomised worlds, as the robot saw them
-    (observations with the world's noise and bias, the told link lengths)."""
+    """Episodes `indices` of the model's policy (or of `policy`, a `masspush.rollout.Policy`)
+    in randomised worlds, as the robot saw them (observations with the world's noise and
+    bias, the told link lengths)."""
     from masspush.evaluate import model_and_policy
     from masspush.robot import run_estimation
     from masspush.settings import get_setting
     from masspush.target_world import TargetWorldRobot
 
     setting_ = get_setting(setting)
-    predictor, _, policy = model_and_policy(model_file, setting_.name)
+    predictor, _, model_policy = model_and_policy(model_file, setting_.name)
+    policy = policy or model_policy
     pushes = setting_.env_config().pushes
     robot = TargetWorldRobot(setting_, world=ranges)
     rows = []
@@ -133,15 +159,16 @@ def _shard_job(args) -> tuple[int, int]:
 
 def collect_randomised(
     config: RandomiseConfig, out: str | os.PathLike, workers: int | None = None,
-    progress: bool = True,
+    progress: bool = True, model_file: str | os.PathLike | None = None,
 ) -> Episodes:  # fmt: skip
-    """Collect (or resume collecting) the randomised episodes into `out`; all of them."""
+    """Collect (or resume collecting) the randomised episodes into `out`; all of them. The
+    pushes are those of `model_file`'s policy (default: the configured model's)."""
     from masspush.dataset import read_shard, shard_complete, shard_path
     from masspush.evaluate import resolve_model
 
     root = Path(out)
     root.mkdir(parents=True, exist_ok=True)
-    model_file = resolve_model(config.model, config.setting)
+    model_file = model_file or resolve_model(config.model, config.setting)
     stamp = root / "randomise.json"
     identity = json.loads(json.dumps(config.identity()))  # tuples as lists, as on disk
     if stamp.exists():
@@ -168,25 +195,77 @@ def collect_randomised(
     return Episodes.concatenate([read_shard(shard_path(root, j)) for j in range(config.shards)])
 
 
+def train_randomised_policy(
+    config: RandomiseConfig, model_file: str | os.PathLike, out: str | os.PathLike,
+    progress: bool = True,
+) -> Path:  # fmt: skip
+    """Go on training the model's policy with PPO in randomised worlds, rewarded by the
+    model's predictor (frozen); returns a model file in `out` that is the same predictor
+    with the new policy (what `collect_randomised` then pushes with)."""
+    from masspush.policy import PolicyConfig, train_policy
+    from masspush.predictor import load_model, save_model
+    from masspush.settings import get_setting
+
+    setting = get_setting(config.setting)
+    model, meta = load_model(model_file, setting.name)
+    if meta.get("policy") != "learned":
+        raise ValueError(f"{model_file} has no learned policy to train on")
+    root = Path(out)
+    policy = train_policy(
+        setting.env_config(),
+        model_file,
+        root / "policy",
+        PolicyConfig(
+            algo=meta["policy_algo"],
+            n_envs=config.policy_envs,
+            steps=config.policy_steps,
+            n_steps=config.policy_rollout,
+            seed=config.base_seed % 2**31,
+        ),
+        init=Path(model_file).parent / meta["policy_file"],
+        progress=progress,
+        meta={"randomised": asdict(config)},
+        setting=setting.name,
+        world=config.ranges,
+    )
+    pushing = root / "pushing-model.pt"
+    save_model(pushing, model, {**meta, "policy_file": str(policy.relative_to(root))})
+    return pushing
+
+
 def randomise(
     config: RandomiseConfig, out: str | os.PathLike, workers: int | None = None,
     ship: bool = False, progress: bool = True,
 ) -> Path:  # fmt: skip
     """Collect the randomised episodes and fine-tune the model's predictor on them; returns
-    the fine-tuned predictor's file (shipped as `SHIPPED_NAME` beside the model if `ship`)."""
+    the fine-tuned predictor's file (shipped as `config.shipped_name` beside the model if
+    `ship`). With `policy_steps`, the policy is first trained on in randomised worlds
+    (`train_randomised_policy`) and the episodes are its pushes; it ships beside the
+    predictor."""
     from masspush.evaluate import SHIPPED_DIR, resolve_model
     from masspush.predictor import load_model, train_predictor
     from masspush.train import FINETUNE
 
     model_file = resolve_model(config.model, config.setting)
-    shipped = SHIPPED_DIR / config.setting / f"{SHIPPED_NAME}.pt"
-    if ship and (config.model != "tp+" or Path(model_file).parent != shipped.parent):
+    shipped = SHIPPED_DIR / config.setting / f"{config.shipped_name}.pt"
+    # A tuned predictor ships beside the policy it reads; with policy_steps that policy is
+    # shipped with it, so any learned model may be its start (e.g. a tp+drp, to go on).
+    if (
+        ship
+        and not config.policy_steps
+        and (config.model != "tp+" or Path(model_file).parent != shipped.parent)
+    ):
         raise ValueError(
             f"--ship ships the shipped tp+ tuned as {SHIPPED_NAME} (its policy file sits "
             f"beside it); got --model {config.model}"
         )
-    episodes = collect_randomised(config, out, workers, progress)
-    model, meta = load_model(model_file, config.setting)
+    pushing = model_file
+    if config.policy_steps:
+        pushing = train_randomised_policy(config, model_file, out, progress)
+    episodes = collect_randomised(config, out, workers, progress, pushing)
+    model, meta = load_model(pushing, config.setting)
+    if config.policy_steps:
+        meta = {**meta, "policy_file": f"../{meta['policy_file']}"}  # from predictor/
     run_dir = Path(out) / "predictor"
     train_predictor(
         episodes,
@@ -199,5 +278,13 @@ def randomise(
     trained = run_dir / "predictor.pt"
     if not ship:
         return trained
-    shutil.copyfile(trained, shipped)
+    if not config.policy_steps:
+        shutil.copyfile(trained, shipped)
+        return shipped
+    from masspush.policy import strip_policy
+    from masspush.predictor import save_model
+
+    policy = strip_policy(run_dir / meta["policy_file"], shipped.with_suffix(".policy.zip"))
+    model, meta = load_model(trained, config.setting)
+    save_model(shipped, model, {**meta, "policy_file": policy.name})
     return shipped
