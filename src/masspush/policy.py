@@ -20,13 +20,16 @@ import json
 import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 import numpy as np
 
 from masspush.config import EnvConfig
 from masspush.rollout import Episodes
+
+if TYPE_CHECKING:
+    from masspush.target_world import TargetWorld, WorldRanges
 
 ALGOS = ("recurrent", "mlp")
 
@@ -97,7 +100,7 @@ class PushPolicyEnv(gym.Env):
 
     def __init__(
         self, env_config: EnvConfig, predictor_path: str, setting: str | None = None,
-        world: Any = None,
+        world: TargetWorld | WorldRanges | None = None,
     ):  # fmt: skip
         import torch
 
@@ -215,7 +218,7 @@ class PolicyConfig:
 
 def make_vec_env(
     env_config: EnvConfig, predictor_path: str | os.PathLike, n_envs: int, seed: int,
-    setting: str | None = None, world: Any = None,
+    setting: str | None = None, world: TargetWorld | WorldRanges | None = None,
 ):  # fmt: skip
     """`n_envs` pushing episodes: for the stiff pusher in lockstep on the multi-threaded
     batch path (`masspush.vec_env`), for an arm or in another world (`PushPolicyEnv`'s
@@ -322,7 +325,7 @@ def train_policy(
     progress: bool = True,
     meta: dict[str, Any] | None = None,
     setting: str | None = None,
-    world: Any = None,
+    world: TargetWorld | WorldRanges | None = None,
 ) -> Path:
     """Train (or, from `init`, go on training) a policy against a frozen predictor; in the
     training simulation, or in `world` (see `PushPolicyEnv`).
