@@ -105,28 +105,13 @@ def collect(design: str, episodes: int, path: Path, workers: int) -> Episodes:
 def target_episodes(design: str, predictor, per_class: int):
     """The paper's protocol in the target world with this design; seeds as `sim2real`."""
     from masspush.evaluate import model_and_policy
-    from masspush.recording import Recording
-    from masspush.robot import run_estimation
-    from masspush.settings import get_setting
-    from masspush.target_world import TargetWorldRobot
+    from masspush.sim2real import Sim2RealConfig, record_classes
 
-    setting = get_setting(SETTING)
     policy = make_policy(design) or model_and_policy("tp+", SETTING)[2]
-    pushes = setting.env_config().pushes
-    recording = Recording(n_links=2, robot="probe", setting=SETTING)
-    labels = []
-    for c, (label, masses) in enumerate(PAPER_CLASSES.items()):
-        robot = TargetWorldRobot(setting, seed=100_000 * c, masses=masses)
-        got = 0
-        while got < per_class:
-            episode = run_estimation(robot, predictor, policy, pushes, seed=robot.seed)
-            if not episode.estimates:
-                continue
-            got += 1
-            recording.episodes.append(episode.recorded(id=f"{label}-{got:03d}", label=label,
-                                                       masses=robot.truth["masses"]))  # fmt: skip
-            labels.append(c)
-    return recording.to_episodes(), np.array(labels)
+    config = Sim2RealConfig(setting=SETTING, episodes_per_class=per_class)
+    recording, _ = record_classes(config, predictor, policy, "probe", progress=False)
+    labels = np.array([list(PAPER_CLASSES).index(label) for label in recording.labels])
+    return recording.to_episodes(), labels
 
 
 def probe(design: str, args) -> dict:

@@ -60,32 +60,24 @@ class Sim2RealConfig:
             )
 
 
-def record_arm(
-    config: Sim2RealConfig, arm: str, path: Path, progress: bool = True
-) -> dict[str, Any]:
-    """Run one arm's episodes in the target world into the recording at `path` (kept and
-    reused when complete, with its failed-push counts beside it); returns the counts."""
-    from masspush.evaluate import model_and_policy
-    from masspush.recording import Recording, read_recording, write_recording
+def record_classes(
+    config: Sim2RealConfig, predictor, policy, robot_name: str, desc: str = "",
+    progress: bool = True,
+):  # fmt: skip
+    """`config.episodes_per_class` usable episodes (at least one push seen) of each of the
+    paper's classes, pushed by `policy` in `config.world`: the recording, labelled, and the
+    failed pushes by reason."""
+    from masspush.recording import Recording
     from masspush.robot import SimRobot, run_estimation
     from masspush.settings import get_setting
     from masspush.target_world import TargetWorldRobot
 
     setting = get_setting(config.setting)
-    wanted = config.episodes_per_class * len(PAPER_CLASSES)
     pushes = setting.env_config().pushes
-    counts = path.with_suffix(".failures.json")
-    model = config.models[arm]
-    robot_name = f"masspush {config.world} world" + ("" if model == ARMS[arm] else f", {model}")
-    if path.exists() and counts.exists():
-        recording = read_recording(path)
-        if len(recording.episodes) == wanted and recording.robot == robot_name:
-            return {"episodes": wanted, "failed_pushes": json.loads(counts.read_text()),
-                    "reused": True}  # fmt: skip
-    predictor, _, policy = model_and_policy(model, setting.name)
     recording = Recording(n_links=setting.n_links, robot=robot_name, setting=setting.name)
     failures: dict[str, int] = {}
-    bar = tqdm(total=wanted, desc=f"{config.world} world, {arm} pushes", disable=not progress)
+    wanted = config.episodes_per_class * len(PAPER_CLASSES)
+    bar = tqdm(total=wanted, desc=desc, disable=not progress)
     for c, (label, masses) in enumerate(PAPER_CLASSES.items()):
         # Seeds differ between classes but are shared by the two arms: both see the same
         # chains, frictions and biases, so the comparison is paired.
@@ -109,6 +101,30 @@ def record_arm(
             bar.update()
         robot.close()
     bar.close()
+    return recording, failures
+
+
+def record_arm(
+    config: Sim2RealConfig, arm: str, path: Path, progress: bool = True
+) -> dict[str, Any]:
+    """Run one arm's episodes in the target world into the recording at `path` (kept and
+    reused when complete, with its failed-push counts beside it); returns the counts."""
+    from masspush.evaluate import model_and_policy
+    from masspush.recording import read_recording, write_recording
+
+    wanted = config.episodes_per_class * len(PAPER_CLASSES)
+    counts = path.with_suffix(".failures.json")
+    model = config.models[arm]
+    robot_name = f"masspush {config.world} world" + ("" if model == ARMS[arm] else f", {model}")
+    if path.exists() and counts.exists():
+        recording = read_recording(path)
+        if len(recording.episodes) == wanted and recording.robot == robot_name:
+            return {"episodes": wanted, "failed_pushes": json.loads(counts.read_text()),
+                    "reused": True}  # fmt: skip
+    predictor, _, policy = model_and_policy(model, config.setting)
+    recording, failures = record_classes(
+        config, predictor, policy, robot_name, f"{config.world} world, {arm} pushes", progress
+    )
     write_recording(path, recording)
     counts.write_text(json.dumps(failures) + "\n")
     return {"episodes": wanted, "failed_pushes": failures, "reused": False}
