@@ -94,3 +94,6 @@ def test_randomise_passes_the_policy_training_on(tmp_path, monkeypatch, capsys):
     assert (seen["config"].policy_steps, seen["config"].policy_envs) == (500, 3)
     assert seen["config"].shipped_name == "tp+drp"
     assert seen["out"] == "runs/randomise-2link-1-10-policy"
+    main(["randomise", "--setting", "2link-1-10", "--world", "target"])
+    assert seen["config"].world == "target"
+    assert seen["out"] == "runs/randomise-2link-1-10-target"

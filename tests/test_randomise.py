@@ -97,6 +97,45 @@ def test_the_fine_tuned_predictor_keeps_its_policy_and_names_its_worlds(tmp_path
         )  # fmt: skip
 
 
+def test_the_tuned_predictor_pushes_with_its_policy_where_it_is_and_where_it_ships(
+    tmp_path, monkeypatch
+):
+    import shutil
+
+    from masspush import evaluate
+    from masspush.evaluate import model_and_policy
+
+    shipped = tmp_path / "models" / SETTING
+    shipped.mkdir(parents=True)
+    for name in ("tp+.pt", "tp+.policy.zip"):
+        shutil.copyfile(evaluate.SHIPPED_DIR / SETTING / name, shipped / name)
+    monkeypatch.setattr(evaluate, "SHIPPED_DIR", tmp_path / "models")
+    trained = randomise(TINY, tmp_path / "run", workers=1, progress=False)
+    path = randomise(TINY, tmp_path / "run", workers=1, ship=True, progress=False)
+    assert path == shipped / "tp+dr.pt"
+    for model in (trained, path):
+        _, meta, policy = model_and_policy(model, SETTING)
+        assert type(policy).__name__ == "LearnedPolicy"
+        assert (model.parent / meta["policy_file"]).resolve() == shipped / "tp+.policy.zip"
+    assert model_and_policy(path, SETTING)[1]["policy_file"] == "tp+.policy.zip"
+
+
+def test_episodes_can_come_from_the_target_world_itself_but_do_not_ship(tmp_path):
+    config = replace(TINY, world="target")
+    assert config.worlds == TargetWorld() and TINY.worlds == WorldRanges()
+    target = collect_randomised(config, tmp_path / "target", workers=1, progress=False)
+    drawn = collect_randomised(TINY, tmp_path / "drawn", workers=1, progress=False)
+    # The same seeds, other episodes: the target world's are those of that world's robot.
+    assert not np.array_equal(target.observations, drawn.observations)
+    robot = TargetWorldRobot(SETTING, world=config.worlds, seed=int(target.seed[0]))
+    robot.start()
+    np.testing.assert_allclose(robot.truth["masses"], target.masses[0], rtol=1e-6)
+    with pytest.raises(ValueError, match="not a model to ship"):
+        randomise(config, tmp_path / "target", ship=True, progress=False)
+    with pytest.raises(ValueError, match="world must be one of"):
+        RandomiseConfig(world="real")
+
+
 def test_the_policy_can_be_trained_on_in_randomised_worlds(tmp_path):
     from masspush.evaluate import model_and_policy
     from masspush.randomise import SHIPPED_POLICY_NAME

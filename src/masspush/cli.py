@@ -207,8 +207,11 @@ def cmd_randomise(args: argparse.Namespace) -> int:
         base_seed=args.seed,
         policy_steps=args.policy_steps,
         policy_envs=args.envs,
+        world=args.world,
     )
-    out = args.out or f"runs/randomise-{args.setting}" + ("-policy" if args.policy_steps else "")
+    suffix = "-policy" if args.policy_steps else ""
+    suffix += "-target" if args.world == "target" else ""
+    out = args.out or f"runs/randomise-{args.setting}{suffix}"
     path = randomise(config, out, args.workers, ship=args.ship)
     print(f"randomised predictor: {path}")
     return 0
@@ -861,6 +864,11 @@ def build_parser() -> argparse.ArgumentParser:
         "pushes (0: keep the policy); ships as tp+drp",
     )  # fmt: skip
     rnd.add_argument("--envs", type=int, default=8, help="PPO's parallel environments")
+    rnd.add_argument(
+        "--world", choices=("randomised", "target"), default="randomised",
+        help="target: collect in the sim-to-real target world itself instead, an upper bound "
+        "(what many labelled episodes of the tested setup could give); not for --ship",
+    )  # fmt: skip
     rnd.add_argument("--workers", type=int, default=None, help="default: one per core")
     rnd.add_argument("--out", default=None, help="default: runs/randomise-<setting>")
     rnd.add_argument(

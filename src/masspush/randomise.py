@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
@@ -34,12 +33,17 @@ import numpy as np
 from tqdm import tqdm
 
 from masspush.rollout import Episodes, empty_episodes, failure_code
-from masspush.target_world import WorldRanges
+from masspush.target_world import TargetWorld, WorldRanges
 
 SHIPPED_NAME = "tp+dr"
 """The name a randomised predictor ships under, beside the model it was tuned from."""
 SHIPPED_POLICY_NAME = "tp+drp"
 """... and with its policy trained on in randomised worlds too (`policy_steps`)."""
+WORLDS = ("randomised", "target")
+"""Where the episodes are collected: worlds drawn from `ranges` (domain randomisation), or
+the sim-to-real target world itself (an upper bound: what fine-tuning on many labelled
+episodes of the very setup that is tested could reach, which no sim-trained model may use)."""
+WHERE = {"randomised": "randomised worlds", "target": "the target world"}
 SEED_STRIDE = 64
 """Seeds per episode: a chain that cannot be placed is redrawn with the next seed, so
 episode i owns seeds base + 64 i ... base + 64 i + 63."""
@@ -65,8 +69,12 @@ class RandomiseConfig:
     policy_rollout: int | None = None
     """Pushes per environment between two PPO updates; None keeps the paper's buffer."""
     ranges: WorldRanges = field(default_factory=WorldRanges)
+    world: str = "randomised"
+    """One of `WORLDS`."""
 
     def __post_init__(self) -> None:
+        if self.world not in WORLDS:
+            raise ValueError(f"world must be one of {list(WORLDS)}, got {self.world!r}")
         if self.episodes < 2 or self.shard_size < 1 or self.steps < 1:
             raise ValueError(
                 f"episodes must be >= 2, shard_size and steps >= 1; got {self.episodes}, "
@@ -77,6 +85,11 @@ class RandomiseConfig:
                 f"policy_steps must be >= 0 and policy_envs >= 1; got {self.policy_steps}, "
                 f"{self.policy_envs}"
             )
+
+    @property
+    def worlds(self) -> WorldRanges | TargetWorld:
+        """What `TargetWorldRobot` is given: ranges to draw from, or the one target world."""
+        return self.ranges if self.world == "randomised" else TargetWorld()
 
     @property
     def shipped_name(self) -> str:
@@ -98,12 +111,13 @@ class RandomiseConfig:
 
 
 def run_randomised(
-    setting: str, model_file: str | os.PathLike, ranges: WorldRanges, indices: np.ndarray,
+    setting: str, model_file: str | os.PathLike, world: WorldRanges | TargetWorld,
+    indices: np.ndarray,
     base_seed: int, policy=None,
 ) -> Episodes:  # fmt: skip
     """Episodes `indices` of the model's policy (or of `policy`, a `masspush.rollout.Policy`)
-    in randomised worlds, as the robot saw them (observations with the world's noise and
-    bias, the told link lengths)."""
+    in worlds drawn from `world` (or in that one `TargetWorld`), as the robot saw them
+    (observations with the world's noise and bias, the told link lengths)."""
     from masspush.evaluate import model_and_policy
     from masspush.robot import run_estimation
     from masspush.settings import get_setting
@@ -113,7 +127,7 @@ def run_randomised(
     predictor, _, model_policy = model_and_policy(model_file, setting_.name)
     policy = policy or model_policy
     pushes = setting_.env_config().pushes
-    robot = TargetWorldRobot(setting_, world=ranges)
+    robot = TargetWorldRobot(setting_, world=world)
     rows = []
     for i in indices:
         robot.seed = base_seed + SEED_STRIDE * int(i)
@@ -151,7 +165,7 @@ def _shard_job(args) -> tuple[int, int]:
     config, model_file, root, j = args
     lo = j * config.shard_size
     indices = np.arange(lo, lo + config.shard_len(j))
-    episodes = run_randomised(config.setting, model_file, config.ranges, indices,
+    episodes = run_randomised(config.setting, model_file, config.worlds, indices,
                               config.base_seed)  # fmt: skip
     write_shard(shard_path(root, j), episodes)
     return j, len(indices)
@@ -185,7 +199,7 @@ def collect_randomised(
     ]  # fmt: skip
     workers = max(1, min(workers or os.cpu_count() or 1, len(todo)))
     done = config.episodes - sum(config.shard_len(j) for j in todo)
-    with tqdm(total=config.episodes, initial=done, desc=f"randomised worlds, {config.model}",
+    with tqdm(total=config.episodes, initial=done, desc=f"{WHERE[config.world]}, {config.model}",
               unit="ep", disable=not progress) as bar:  # fmt: skip
         if todo:
             with ProcessPoolExecutor(max_workers=workers) as pool:
@@ -226,7 +240,7 @@ def train_randomised_policy(
         progress=progress,
         meta={"randomised": asdict(config)},
         setting=setting.name,
-        world=config.ranges,
+        world=config.worlds,
     )
     pushing = root / "pushing-model.pt"
     save_model(pushing, model, {**meta, "policy_file": str(policy.relative_to(root))})
@@ -259,14 +273,22 @@ def randomise(
             f"--ship ships the shipped tp+ tuned as {SHIPPED_NAME} (its policy file sits "
             f"beside it); got --model {config.model}"
         )
+    if ship and config.world != "randomised":
+        raise ValueError(
+            "a predictor tuned in the target world itself is an upper bound for the "
+            "sim-to-real test, not a model to ship; drop --ship"
+        )
     pushing = model_file
     if config.policy_steps:
         pushing = train_randomised_policy(config, model_file, out, progress)
     episodes = collect_randomised(config, out, workers, progress, pushing)
     model, meta = load_model(pushing, config.setting)
-    if config.policy_steps:
-        meta = {**meta, "policy_file": f"../{meta['policy_file']}"}  # from predictor/
     run_dir = Path(out) / "predictor"
+    shipped_policy_file = meta.get("policy_file")
+    if shipped_policy_file:
+        # Named relative to the model file; the tuned predictor lives in run_dir.
+        policy_file = Path(pushing).parent / shipped_policy_file
+        meta = {**meta, "policy_file": os.path.relpath(policy_file, run_dir)}
     train_predictor(
         episodes,
         run_dir,
@@ -278,11 +300,13 @@ def randomise(
     trained = run_dir / "predictor.pt"
     if not ship:
         return trained
-    if not config.policy_steps:
-        shutil.copyfile(trained, shipped)
-        return shipped
     from masspush.policy import strip_policy
     from masspush.predictor import save_model
+
+    if not config.policy_steps:  # beside the model, whose policy file it names
+        model, meta = load_model(trained, config.setting)
+        save_model(shipped, model, {**meta, "policy_file": shipped_policy_file})
+        return shipped
 
     policy = strip_policy(run_dir / meta["policy_file"], shipped.with_suffix(".policy.zip"))
     model, meta = load_model(trained, config.setting)
