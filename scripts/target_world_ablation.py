@@ -23,33 +23,25 @@ from masspush.evaluate import model_and_policy
 from masspush.finetune import PAPER_CLASSES
 from masspush.robot import run_estimation
 from masspush.settings import get_setting
-from masspush.target_world import TargetWorld, TargetWorldRobot
+from masspush.target_world import TRAINING_KNOBS, TargetWorld, TargetWorldRobot, scaled_world
 
 GROUPS = {
-    "none": {},
-    "solver": dict(
-        timestep=0.001,
-        solver="Newton",
-        solver_iterations=100,
-        cone="elliptic",
-        contact_solref=(0.02, 1.0),
-        contact_solimp=(0.9, 0.95, 0.001),
-        torsional_friction=0.0,
-    ),
-    "friction": dict(friction_range=(0.5, 1.0), friction_variation=0.0),
-    "geometry": dict(link_width=0.04, link_height=0.03, com_offset=0.0, length_error=0.0),
-    "tracking": dict(obs_noise=0.01, obs_bias=(0.0, 0.0)),
-    "actuation": dict(action_noise=0.01, speed_gain=(1.0, 1.0), contact_bias=0.0),
-}
+    "none": (),
+    "solver": ("timestep", "solver", "solver_iterations", "cone", "contact_solref",
+               "contact_solimp", "torsional_friction"),
+    "friction": ("friction_range", "friction_variation"),
+    "geometry": ("link_width", "link_height", "com_offset", "length_error"),
+    "tracking": ("obs_noise", "obs_bias"),
+    "actuation": ("action_noise", "speed_gain", "contact_bias"),
+}  # fmt: skip
 """Knobs of `TargetWorld` put back to the training world's values, by kind of difference."""
 CLASSES = ("0.160-0.160", "0.064-0.192", "0.064-0.256")
 
 
 def world_without(group: str) -> TargetWorld:
     if group == "all":
-        knobs = {k: v for group_knobs in GROUPS.values() for k, v in group_knobs.items()}
-        return replace(TargetWorld(), **knobs)
-    return replace(TargetWorld(), **GROUPS[group])
+        return scaled_world(0)
+    return replace(TargetWorld(), **{k: TRAINING_KNOBS[k] for k in GROUPS[group]})
 
 
 def main() -> None:

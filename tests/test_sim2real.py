@@ -88,3 +88,32 @@ def test_another_model_for_an_arm_records_anew_and_is_named(run, tmp_path):
     assert read_recording(out / "learned.jsonl").robot == "masspush target world, tp"
     with pytest.raises(ValueError, match="one model for each"):
         replace(CONFIG, models={"learned": "tp+"})
+
+
+def test_the_target_worlds_differences_can_be_scaled(run, tmp_path):
+    from dataclasses import replace
+
+    done, _ = run
+    run_sim2real(replace(CONFIG, severity=0.0), tmp_path, progress=False)
+    scaled = read_recording(tmp_path / "learned.jsonl")
+    assert scaled.robot == "masspush target world (differences x0)"
+    full = read_recording(done / "learned.jsonl")
+    # The same chains, seen through another world's tracker.
+    assert [e["masses"] for e in scaled.episodes] == [e["masses"] for e in full.episodes]
+    assert scaled.episodes[0]["observations"] != full.episodes[0]["observations"]
+    # A world given outright is what the robot runs in.
+    from masspush.evaluate import model_and_policy
+    from masspush.sim2real import record_classes
+    from masspush.target_world import scaled_world
+
+    predictor, _, policy = model_and_policy("tp+", CONFIG.setting)
+    given, _ = record_classes(CONFIG, predictor, policy, "given", progress=False,
+                              target=scaled_world(0))  # fmt: skip
+    np.testing.assert_allclose(
+        np.asarray(given.episodes[0]["observations"], float),
+        np.asarray(scaled.episodes[0]["observations"], float), atol=1e-6,
+    )  # fmt: skip
+    with pytest.raises(ValueError, match="needs world 'target'"):
+        Sim2RealConfig(world="training", severity=0.5)
+    with pytest.raises(ValueError, match="severity"):
+        Sim2RealConfig(severity=-0.1)

@@ -6,7 +6,7 @@ import pytest
 
 from masspush.chain import wrap_angle
 from masspush.robot import make_robot
-from masspush.target_world import FrictionField, TargetWorld, TargetWorldRobot
+from masspush.target_world import FrictionField, TargetWorld, TargetWorldRobot, scaled_world
 
 SETTING = "2link-1-10"  # the stiff pusher keeps these tests fast
 
@@ -120,3 +120,41 @@ def test_the_world_keeps_the_links_meeting_at_a_right_angle():
     physics = TargetWorld().physics(robot().setting.physics())
     assert physics.joint_gap == pytest.approx(physics.link_width)
     assert physics.joint_limit < math.pi / 2
+
+
+def test_at_severity_0_the_knobs_are_the_training_worlds():
+    from masspush.robot import SimRobot
+    from masspush.settings import get_setting
+
+    train = SimRobot(SETTING, seed=3)
+    train.start()
+    target = robot(scaled_world(0))
+    target.start()
+    a, b = train.env.sim.model, target.sim.model
+    for name in ("timestep", "cone", "solver", "iterations"):
+        assert getattr(a.opt, name) == getattr(b.opt, name), name
+    boxes = [a.geom(f"box{i}").id for i in range(2)]
+    # Width and height; the lengths are each chain's own.
+    np.testing.assert_allclose(a.geom_size[boxes, 1:], b.geom_size[target._boxes, 1:])
+    np.testing.assert_allclose(a.geom_solref[boxes], b.geom_solref[target._boxes])
+    np.testing.assert_allclose(a.geom_solimp[boxes], b.geom_solimp[target._boxes])
+    env = get_setting(SETTING).env_config()
+    world = scaled_world(0)
+    assert (world.obs_noise, world.action_noise) == (env.obs_noise, env.action_noise)
+    assert world.friction_range == env.physics.friction_range
+    # Nothing is drawn per episode: no bias, gain, contact offset or friction field.
+    assert not target.bias.any() and target.gain == 1.0 and target.contact == 0.0
+    assert target.field.amplitude == 0.0
+
+
+def test_severity_moves_each_difference_from_training_to_the_target_world():
+    half, world = scaled_world(0.5), TargetWorld()
+    assert scaled_world(1) == world
+    assert half.obs_noise == pytest.approx((0.01 + world.obs_noise) / 2)
+    assert half.contact_solref == pytest.approx((0.015, 0.9))
+    assert half.solver_iterations == 60 and isinstance(half.solver_iterations, int)
+    # What cannot be scaled is the target world's as soon as anything differs.
+    assert (half.solver, half.cone) == (world.solver, world.cone)
+    assert scaled_world(0.5, TargetWorld(com_offset=0.002)).com_offset == pytest.approx(0.001)
+    with pytest.raises(ValueError, match="severity"):
+        scaled_world(1.5)

@@ -186,6 +186,7 @@ def cmd_sim2real(args: argparse.Namespace) -> int:
         episodes_per_class=args.episodes_per_class,
         seed=args.seed,
         world=args.world,
+        severity=args.severity,
         classifier=ClassifierConfig(folds=args.folds, seed=args.seed),
         models={"random": args.random_model, "learned": args.learned_model},
     )
@@ -845,6 +846,11 @@ def build_parser() -> argparse.ArgumentParser:
         choices=("target", "training"),
         help="training: the control run in the models' own world",
     )
+    s2r.add_argument(
+        "--severity", type=float, default=1.0,
+        help="scale the target world's differences from training: 1 as built, 0 none; how "
+        "close to the simulation must a lab be?",
+    )  # fmt: skip
     s2r.add_argument("--random-model", default="rp", help="the random-push arm's model")
     s2r.add_argument("--learned-model", default="tp+", help="the learned arm's model, e.g. tp+dr")
     s2r.set_defaults(func=cmd_sim2real)

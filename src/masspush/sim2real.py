@@ -13,7 +13,7 @@ from __future__ import annotations
 import json
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from tqdm import tqdm
@@ -25,6 +25,9 @@ from masspush.finetune import (
     labelled,
     predictor_features,
 )
+
+if TYPE_CHECKING:
+    from masspush.target_world import TargetWorld
 
 PAPER_ACCURACY = {"random": 40.74, "learned": 81.4}
 """The paper's real-robot accuracies, % (chance 20 %) [paper-details.md]."""
@@ -43,6 +46,9 @@ class Sim2RealConfig:
     world: str = "target"
     """"target": the sim-to-real target world; "training": the world the models were
     trained in (the control: what the protocol gives without any gap)."""
+    severity: float = 1.0
+    """The target world's differences from training, scaled (`target_world.scaled_world`):
+    1 the target world, 0 the training world's knobs; only with world "target"."""
     classifier: ClassifierConfig = field(default_factory=ClassifierConfig)
     models: dict[str, str] = field(default_factory=lambda: dict(ARMS))
     """Each arm's model (shipped name or path): its policy pushes, its predictor's
@@ -53,6 +59,10 @@ class Sim2RealConfig:
             raise ValueError(f"models must name one model for each of {list(ARMS)}")
         if self.world not in WORLDS:
             raise ValueError(f"world must be one of {WORLDS}, got {self.world!r}")
+        if not 0 <= self.severity <= 1:
+            raise ValueError(f"severity must be in [0, 1], got {self.severity!r}")
+        if self.world != "target" and self.severity != 1:
+            raise ValueError("severity scales the target world; it needs world 'target'")
         if self.episodes_per_class < self.classifier.folds:
             raise ValueError(
                 f"episodes_per_class must be >= the {self.classifier.folds} folds, "
@@ -62,28 +72,30 @@ class Sim2RealConfig:
 
 def record_classes(
     config: Sim2RealConfig, predictor, policy, robot_name: str, desc: str = "",
-    progress: bool = True,
+    progress: bool = True, target: TargetWorld | None = None,
 ):  # fmt: skip
     """`config.episodes_per_class` usable episodes (at least one push seen) of each of the
     paper's classes, pushed by `policy` in `config.world`: the recording, labelled, and the
-    failed pushes by reason."""
+    failed pushes by reason. `target` replaces the target world (default: the target world
+    at `config.severity`)."""
     from masspush.recording import Recording
     from masspush.robot import SimRobot, run_estimation
     from masspush.settings import get_setting
-    from masspush.target_world import TargetWorldRobot
+    from masspush.target_world import TargetWorldRobot, scaled_world
 
     setting = get_setting(config.setting)
     pushes = setting.env_config().pushes
     recording = Recording(n_links=setting.n_links, robot=robot_name, setting=setting.name)
     failures: dict[str, int] = {}
     wanted = config.episodes_per_class * len(PAPER_CLASSES)
+    world = target or scaled_world(config.severity)
     bar = tqdm(total=wanted, desc=desc, disable=not progress)
     for c, (label, masses) in enumerate(PAPER_CLASSES.items()):
         # Seeds differ between classes but are shared by the two arms: both see the same
         # chains, frictions and biases, so the comparison is paired.
         first = config.seed + 100_000 * c
         robot = (
-            TargetWorldRobot(setting, seed=first, masses=masses)
+            TargetWorldRobot(setting, world, seed=first, masses=masses)
             if config.world == "target"
             else SimRobot(setting, seed=first, masses=masses)
         )
@@ -115,7 +127,10 @@ def record_arm(
     wanted = config.episodes_per_class * len(PAPER_CLASSES)
     counts = path.with_suffix(".failures.json")
     model = config.models[arm]
-    robot_name = f"masspush {config.world} world" + ("" if model == ARMS[arm] else f", {model}")
+    robot_name = f"masspush {config.world} world"
+    if config.severity != 1:
+        robot_name += f" (differences x{config.severity:g})"
+    robot_name += "" if model == ARMS[arm] else f", {model}"
     if path.exists() and counts.exists():
         recording = read_recording(path)
         if len(recording.episodes) == wanted and recording.robot == robot_name:

@@ -31,7 +31,7 @@ import mujoco
 import numpy as np
 
 from masspush.chain import sample_chain, wrap_angle
-from masspush.config import PhysicsConfig, Range
+from masspush.config import EnvConfig, PhysicsConfig, Range
 from masspush.pusher import make_pusher
 from masspush.robot import PushReport, RestPose
 from masspush.simulate import ChainSim
@@ -120,6 +120,54 @@ class TargetWorld:
             joint_gap=base.joint_gap - base.link_width + self.link_width,
             friction_range=tuple(self.friction_range),
         )
+
+
+TRAINING_KNOBS: dict[str, Any] = {
+    # MuJoCo's defaults, which the training scene keeps (`masspush.chain.build_spec`).
+    "timestep": PhysicsConfig.timestep,
+    "solver": "Newton",
+    "solver_iterations": 100,
+    "cone": "elliptic",
+    "contact_solref": (0.02, 1.0),
+    "contact_solimp": (0.9, 0.95, 0.001),
+    "torsional_friction": 0.0,
+    # The training world's own configuration (`masspush.config`).
+    "friction_range": PhysicsConfig.friction_range,
+    "friction_variation": 0.0,
+    "link_width": PhysicsConfig.link_width,
+    "link_height": PhysicsConfig.link_height,
+    "com_offset": 0.0,
+    "length_error": 0.0,
+    "obs_noise": EnvConfig.obs_noise,
+    "obs_bias": (0.0, 0.0),
+    "action_noise": EnvConfig.action_noise,
+    "speed_gain": (1.0, 1.0),
+    "contact_bias": 0.0,
+}
+"""`TargetWorld`'s knobs at the training world's values: with them, only condim 4 and the
+links' contact priority are left of the target world's differences."""
+
+
+def scaled_world(severity: float, world: TargetWorld | None = None) -> TargetWorld:
+    """`world` (default: the target world) with every difference from the training world
+    scaled by `severity` in [0, 1]: each number moves from its training value (0) to the
+    world's (1); the solver and the cones, which cannot be scaled, are the world's for any
+    severity above 0. How close to the simulation must a lab be for an accuracy?"""
+    if not 0 <= severity <= 1:
+        raise ValueError(f"severity must be in [0, 1], got {severity!r}")
+    world = world or TargetWorld()
+    if severity == 1:  # exactly the world, not a rounding away from it
+        return world
+
+    def between(train: Any, target: Any) -> Any:
+        if isinstance(target, str):
+            return target if severity > 0 else train
+        if isinstance(target, tuple):
+            return tuple(between(a, b) for a, b in zip(train, target, strict=True))
+        value = train + severity * (target - train)
+        return round(value) if isinstance(target, int) else float(value)
+
+    return replace(world, **{k: between(v, getattr(world, k)) for k, v in TRAINING_KNOBS.items()})
 
 
 @dataclass(frozen=True)
