@@ -39,11 +39,11 @@ SHIPPED_NAME = "tp+dr"
 """The name a randomised predictor ships under, beside the model it was tuned from."""
 SHIPPED_POLICY_NAME = "tp+drp"
 """... and with its policy trained on in randomised worlds too (`policy_steps`)."""
-WORLDS = ("randomised", "target")
+WHERE = {"randomised": "randomised worlds", "target": "the target world"}
 """Where the episodes are collected: worlds drawn from `ranges` (domain randomisation), or
 the sim-to-real target world itself (an upper bound: what fine-tuning on many labelled
 episodes of the very setup that is tested could reach, which no sim-trained model may use)."""
-WHERE = {"randomised": "randomised worlds", "target": "the target world"}
+WORLDS = tuple(WHERE)
 SEED_STRIDE = 64
 """Seeds per episode: a chain that cannot be placed is redrawn with the next seed, so
 episode i owns seeds base + 64 i ... base + 64 i + 63."""
@@ -112,8 +112,7 @@ class RandomiseConfig:
 
 def run_randomised(
     setting: str, model_file: str | os.PathLike, world: WorldRanges | TargetWorld,
-    indices: np.ndarray,
-    base_seed: int, policy=None,
+    indices: np.ndarray, base_seed: int, policy=None,
 ) -> Episodes:  # fmt: skip
     """Episodes `indices` of the model's policy (or of `policy`, a `masspush.rollout.Policy`)
     in worlds drawn from `world` (or in that one `TargetWorld`), as the robot saw them
