@@ -2,7 +2,7 @@
 of the same episode" in docs/results.md (sim-to-real).
 
     python scripts/target_world_segments.py [--setting real-ur10-4push] [--model tp+]
-        [--episodes 30] [--segments 4] [--worlds target,training]
+        [--episodes 30] [--segments 4] [--worlds target,training] [--severity 1]
 
 Each episode runs the learned policy for `--segments` consecutive segments of the setting's
 pushes on the same chain, in the same world, with the same per-episode biases (tracker
@@ -12,7 +12,8 @@ segments' estimates averages the per-push noise away, as a model trained for tha
 pushes could at best, but not what is fixed for the episode. For the three paper classes
 that are hardest to tell apart it prints the per-class mean +- std of the estimated share
 of link 1 over episodes, averaged over the first 1, 2, 4... segments. Classes 0.05 apart in
-that share need a std of about 0.02 for the classifier to reach 90 %.
+that share need a std of about 0.02 for the classifier to reach 90 %. `--severity` scales
+the target world's differences from training (`masspush.target_world.scaled_world`).
 """
 
 import argparse
@@ -26,7 +27,7 @@ from masspush.evaluate import model_and_policy
 from masspush.finetune import PAPER_CLASSES
 from masspush.robot import RestPose, SimRobot, run_estimation
 from masspush.settings import get_setting
-from masspush.target_world import TargetWorldRobot
+from masspush.target_world import TargetWorldRobot, scaled_world
 
 CLASSES = ("0.160-0.160", "0.064-0.192", "0.064-0.256")
 
@@ -57,6 +58,7 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=30)
     parser.add_argument("--segments", type=int, default=4)
     parser.add_argument("--worlds", default="target,training")
+    parser.add_argument("--severity", type=float, default=1.0, help="of the target world")
     args = parser.parse_args()
     setting = get_setting(args.setting)
     predictor, _, policy = model_and_policy(args.model, setting.name)
@@ -68,11 +70,13 @@ def main() -> None:
     print("|---" * (len(counts) + 2) + "|")
     for world in args.worlds.split(","):
         start = time.perf_counter()
+        name = f"{world} x{args.severity:g}" if world == "target" and args.severity != 1 else world
         for label in CLASSES:
             masses = PAPER_CLASSES[label]
             c = list(PAPER_CLASSES).index(label)
             if world == "target":
-                robot = TargetWorldRobot(setting, seed=100_000 * c, masses=masses)
+                robot = TargetWorldRobot(setting, scaled_world(args.severity),
+                                         seed=100_000 * c, masses=masses)  # fmt: skip
             else:  # the training world's episodes end after the setting's pushes: allow all
                 robot = SimRobot(setting, seed=100_000 * c, masses=masses)
                 robot.env.close()
@@ -85,8 +89,8 @@ def main() -> None:
             truth = masses[0] / sum(masses)
             cells = [f"{shares[:, :k].mean(1).mean():.3f} +- {shares[:, :k].mean(1).std():.3f}"
                      for k in counts]  # fmt: skip
-            print(f"| {world} | {label} ({truth:.2f}) | " + " | ".join(cells) + " |", flush=True)
-        print(f"<!-- {world}: {time.perf_counter() - start:.0f} s -->", flush=True)
+            print(f"| {name} | {label} ({truth:.2f}) | " + " | ".join(cells) + " |", flush=True)
+        print(f"<!-- {name}: {time.perf_counter() - start:.0f} s -->", flush=True)
 
 
 if __name__ == "__main__":
