@@ -18,9 +18,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from masspush.evaluate import model_and_policy
-from masspush.recording import read_recording, write_recording
-from masspush.sim2real import Sim2RealConfig, record_classes, score_arm
+from masspush.sim2real import Sim2RealConfig, record_arm, score_arm
 from masspush.target_world import TRAINING_KNOBS, TargetWorld, scaled_world
 
 UNSCALED = ("solver", "solver_iterations", "cone")
@@ -54,24 +52,17 @@ def main() -> None:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     config = Sim2RealConfig(setting=args.setting, models={"random": "rp", "learned": args.model})
-    predictor, _, policy = model_and_policy(args.model, config.setting)
     print("| world | accuracy, learned arm | predictor error | failed pushes | s |")
     print("|---|---|---|---|---|")
     for row in args.rows.split(","):
         start = time.perf_counter()
         path = out / f"{row}.jsonl"
         name = f"masspush target world ({row}), {args.model}"
-        if not (path.exists() and read_recording(path).robot == name):
-            recording, failures = record_classes(
-                config, predictor, policy, name, row, target=ROWS[row]
-            )
-            write_recording(path, recording)
-            path.with_suffix(".failures.json").write_text(json.dumps(failures) + "\n")
+        counts = record_arm(config, "learned", path, target=ROWS[row], robot_name=name)
         scores = score_arm(config, "learned", path)
-        failed = path.with_suffix(".failures.json").read_text().strip()
         print(
             f"| {row} | {100 * scores['estimate']['accuracy']:.1f} % "
-            f"| {scores['percentage_error']:.2f} | {failed} "
+            f"| {scores['percentage_error']:.2f} | {json.dumps(counts['failed_pushes'])} "
             f"| {time.perf_counter() - start:.0f} |",
             flush=True,
         )

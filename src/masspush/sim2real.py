@@ -117,20 +117,24 @@ def record_classes(
 
 
 def record_arm(
-    config: Sim2RealConfig, arm: str, path: Path, progress: bool = True
-) -> dict[str, Any]:
+    config: Sim2RealConfig, arm: str, path: Path, progress: bool = True,
+    target: TargetWorld | None = None, robot_name: str | None = None,
+) -> dict[str, Any]:  # fmt: skip
     """Run one arm's episodes in the target world into the recording at `path` (kept and
-    reused when complete, with its failed-push counts beside it); returns the counts."""
+    reused when complete, with its failed-push counts beside it); returns the counts.
+    `target` replaces the target world (`record_classes`); `robot_name`, which names the
+    recording and decides whether a kept one is reused, then tells the worlds apart."""
     from masspush.evaluate import model_and_policy
     from masspush.recording import read_recording, write_recording
 
     wanted = config.episodes_per_class * len(PAPER_CLASSES)
     counts = path.with_suffix(".failures.json")
     model = config.models[arm]
-    robot_name = f"masspush {config.world} world"
-    if config.severity != 1:
-        robot_name += f" (differences x{config.severity:g})"
-    robot_name += "" if model == ARMS[arm] else f", {model}"
+    if robot_name is None:
+        robot_name = f"masspush {config.world} world"
+        if config.severity != 1:
+            robot_name += f" (differences x{config.severity:g})"
+        robot_name += "" if model == ARMS[arm] else f", {model}"
     if path.exists() and counts.exists():
         recording = read_recording(path)
         if len(recording.episodes) == wanted and recording.robot == robot_name:
@@ -138,7 +142,13 @@ def record_arm(
                     "reused": True}  # fmt: skip
     predictor, _, policy = model_and_policy(model, config.setting)
     recording, failures = record_classes(
-        config, predictor, policy, robot_name, f"{config.world} world, {arm} pushes", progress
+        config,
+        predictor,
+        policy,
+        robot_name,
+        f"{config.world} world, {arm} pushes",
+        progress,
+        target,
     )
     write_recording(path, recording)
     counts.write_text(json.dumps(failures) + "\n")
