@@ -283,10 +283,10 @@ def randomise(
     episodes = collect_randomised(config, out, workers, progress, pushing)
     model, meta = load_model(pushing, config.setting)
     run_dir = Path(out) / "predictor"
-    shipped_policy_file = meta.get("policy_file")
-    if shipped_policy_file:
+    pushing_policy_file = meta.get("policy_file")
+    if pushing_policy_file:
         # Named relative to the model file; the tuned predictor lives in run_dir.
-        policy_file = Path(pushing).parent / shipped_policy_file
+        policy_file = Path(pushing).parent / pushing_policy_file
         meta = {**meta, "policy_file": os.path.relpath(policy_file, run_dir)}
     train_predictor(
         episodes,
@@ -304,7 +304,7 @@ def randomise(
 
     if not config.policy_steps:  # beside the model, whose policy file it names
         model, meta = load_model(trained, config.setting)
-        save_model(shipped, model, {**meta, "policy_file": shipped_policy_file})
+        save_model(shipped, model, {**meta, "policy_file": pushing_policy_file})
         return shipped
 
     policy = strip_policy(run_dir / meta["policy_file"], shipped.with_suffix(".policy.zip"))
