@@ -97,3 +97,17 @@ def test_randomise_passes_the_policy_training_on(tmp_path, monkeypatch, capsys):
     main(["randomise", "--setting", "2link-1-10", "--world", "target"])
     assert seen["config"].world == "target"
     assert seen["out"] == "runs/randomise-2link-1-10-target"
+
+
+def test_run_on_one_lab_of_the_target_world_records_it(tmp_path, capsys):
+    out = tmp_path / "lab.jsonl"
+    args = ["run", "--robot", "target", "--setting", "2link-1-10", "--model", "tp+",
+            "--count", "2", "--lab", "1", "--record", str(out)]  # fmt: skip
+    assert main(args) == 0
+    assert capsys.readouterr().out.count("estimate ") >= 2
+    from masspush.recording import read_recording
+
+    episodes = read_recording(out).episodes
+    assert len(episodes) == 2 and episodes[0]["lengths"] == episodes[1]["lengths"]
+    assert main(["run", "--robot", "stiff", "--setting", "2link-1-10", "--lab", "1"]) == 2
+    assert "lab" in capsys.readouterr().err

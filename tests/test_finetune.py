@@ -77,3 +77,67 @@ def test_folds_are_stratified_and_too_few_episodes_are_refused():
         cross_validate(np.zeros((6, 4)), np.array([0, 0, 0, 1, 1, 1]), 2, ClassifierConfig())
     with pytest.raises(ValueError, match="folds"):
         ClassifierConfig(folds=1)
+
+
+def segmented_recording(path, segments: int = 3, episodes: int = 4):
+    """Episodes of `segments` runs of the random policy (2 pushes each) in which no push
+    failed, with what each run estimated as it went."""
+    from masspush.robot import run_segments
+    from masspush.target_world import TargetWorldRobot
+
+    predictor = load_model(resolve_model("rp+", SETTING), SETTING)[0]
+    # The target world, unlike the training world's environment, has no last push.
+    robot = TargetWorldRobot(SETTING, seed=77, masses=(2.0, 8.0))
+    runs = []
+    while len(runs) < episodes:
+        run = run_segments(robot, predictor, RandomPolicy(), 2, segments, seed=robot.seed)
+        if len(run.estimates) == 2 * segments:
+            runs.append(run)
+    recorded = [r.recorded(id=f"e{i}", label="light-heavy" if i % 2 else "even")
+                for i, r in enumerate(runs)]  # fmt: skip
+    write_recording(path, Recording(2, robot="sim", setting=SETTING, episodes=recorded))
+    return predictor, runs
+
+
+def test_segment_features_average_what_each_run_estimated(tmp_path):
+    predictor, runs = segmented_recording(tmp_path / "runs.jsonl")
+    episodes = read_recording(tmp_path / "runs.jsonl").to_episodes()
+    assert all(len(r.run_estimates) == 3 and len(r.actions) == 6 for r in runs)
+    features = predictor_features(predictor, episodes, "estimate", segment=2)
+    expected = np.log([np.mean(r.run_estimates, axis=0) for r in runs])
+    np.testing.assert_allclose(features, expected, atol=1e-5)
+    # Read whole, the 6 pushes make one estimate of their own.
+    whole = predictor_features(predictor, episodes, "estimate")
+    assert not np.allclose(whole, features, atol=1e-3)
+    lstm = predictor_features(predictor, episodes, "lstm", segment=2)
+    assert lstm.shape == (4, 64)
+
+
+def test_an_unfinished_run_counts_with_the_pushes_it_saw(tmp_path):
+    predictor, _ = segmented_recording(tmp_path / "runs.jsonl", episodes=2)
+    recording = read_recording(tmp_path / "runs.jsonl")
+    short = recording.episodes[0]
+    short["actions"], short["observations"] = short["actions"][:3], short["observations"][:4]
+    episodes = recording.to_episodes()
+    features = predictor_features(predictor, episodes, "estimate", segment=2)
+    first_run = predictor_features(predictor, episodes.select(np.array([True, False])),
+                                   "estimate")  # fmt: skip
+    from masspush.finetune import segments_of
+
+    parts, owner = segments_of(episodes, 2)
+    assert len(parts) == 5 and parts.actions.shape[1] == 2
+    assert owner.tolist() == [0, 1, 0, 1, 1]  # runs 1-2 of episode 0, runs 1-3 of episode 1
+    assert not np.allclose(features[0], first_run[0])
+    with pytest.raises(ValueError, match="segment"):
+        ClassifierConfig(segment=-1)
+
+
+def test_finetune_and_classify_read_runs_as_recorded(tmp_path, capsys):
+    segmented_recording(tmp_path / "runs.jsonl", episodes=6)
+    out = tmp_path / "clf.pt"
+    args = ["--setting", SETTING, "--model", "rp+", "--episodes", str(tmp_path / "runs.jsonl")]
+    assert main(["finetune", *args, "--out", str(out), "--folds", "3", "--segment", "2"]) == 0
+    assert load_classifier(out)[2]["segment"] == 2
+    capsys.readouterr()
+    assert main(["classify", "--classifier", str(out), "--episodes", args[-1]]) == 0
+    assert "accuracy on the 6 labelled" in capsys.readouterr().out

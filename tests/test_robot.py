@@ -70,3 +70,22 @@ def test_simulated_robot_is_deterministic_and_backends_are_checked(predictor):
         make_robot("ros", SETTING)
     with pytest.raises(ValueError, match="needs --episodes"):
         make_robot("replay", SETTING)
+
+
+def test_runs_of_the_policy_go_on_from_where_the_last_left_the_chain(predictor):
+    from masspush.robot import run_segments
+    from masspush.target_world import TargetWorldRobot
+
+    one = run_segments(TargetWorldRobot(SETTING, seed=5), predictor, RandomPolicy(), 2, 1, seed=1)
+    alone = run_estimation(TargetWorldRobot(SETTING, seed=5), predictor, RandomPolicy(), 2, seed=1)
+    np.testing.assert_array_equal(np.array(one.estimates), np.array(alone.estimates))
+    heard = []
+    robot = TargetWorldRobot(SETTING, seed=5)
+    runs = run_segments(robot, predictor, RandomPolicy(), 2, 3, lambda k, *_: heard.append(k))
+    assert heard == list(range(len(runs.reports)))
+    # Each run starts from the rest pose the one before ended in.
+    recorded = runs.recorded(id="x")
+    assert len(recorded["observations"]) == len(runs.estimates) + 1
+    assert len(runs.run_estimates) == -(-len(runs.estimates) // 2)
+    with pytest.raises(ValueError, match="segments"):
+        run_segments(robot, predictor, RandomPolicy(), 2, 0)

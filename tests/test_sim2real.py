@@ -68,6 +68,10 @@ def test_the_control_runs_in_the_training_world(tmp_path):
 
     run_sim2real(replace(CONFIG, world="training"), tmp_path, progress=False)
     assert read_recording(tmp_path / "learned.jsonl").robot == "masspush training world"
+    # Runs of the policy push on past the training environment's last push.
+    run_sim2real(replace(CONFIG, world="training", segments=2), tmp_path / "runs", progress=False)
+    runs = read_recording(tmp_path / "runs" / "learned.jsonl").episodes
+    assert max(len(e["actions"]) for e in runs) == 4
     with pytest.raises(ValueError, match="world must be one of"):
         Sim2RealConfig(world="moon")
 
@@ -115,5 +119,22 @@ def test_the_target_worlds_differences_can_be_scaled(run, tmp_path):
     )  # fmt: skip
     with pytest.raises(ValueError, match="needs world 'target'"):
         Sim2RealConfig(world="training", severity=0.5)
+    with pytest.raises(ValueError, match="needs world 'target'"):
+        Sim2RealConfig(world="training", lab=0)
     with pytest.raises(ValueError, match="severity"):
         Sim2RealConfig(severity=-0.1)
+
+
+def test_one_lab_with_runs_of_the_policy(tmp_path):
+    from dataclasses import replace
+
+    results = run_sim2real(replace(CONFIG, lab=3, segments=2), tmp_path, progress=False)
+    recording = read_recording(tmp_path / "learned.jsonl")
+    assert recording.robot == "masspush target world, lab 3, 2 runs of the policy per episode"
+    # One chain design in one lab: every episode is told the same link lengths.
+    assert len({tuple(e["lengths"]) for e in recording.episodes}) == 1
+    # Two runs of the setting's 2 pushes, unless a push failed.
+    assert max(len(e["actions"]) for e in recording.episodes) == 4
+    assert 0 <= results["arms"]["learned"]["estimate"]["accuracy"] <= 1
+    with pytest.raises(ValueError, match="segments"):
+        Sim2RealConfig(segments=0)

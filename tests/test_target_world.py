@@ -6,7 +6,13 @@ import pytest
 
 from masspush.chain import wrap_angle
 from masspush.robot import make_robot
-from masspush.target_world import FrictionField, TargetWorld, TargetWorldRobot, scaled_world
+from masspush.target_world import (
+    FrictionField,
+    TargetWorld,
+    TargetWorldRobot,
+    WorldRanges,
+    scaled_world,
+)
 
 SETTING = "2link-1-10"  # the stiff pusher keeps these tests fast
 
@@ -100,9 +106,70 @@ def test_pinned_masses_are_the_chain_masses():
     np.testing.assert_allclose(r.truth["masses"], [2.0, 6.0])
 
 
+def lab_constants(r: TargetWorldRobot) -> np.ndarray:
+    """What a lab keeps from one episode to the next, as one vector."""
+    offsets = r.sim.model.body_ipos[r.sim.model.geom_bodyid[r._boxes], 0]
+    told = r.lab.told_lengths if r.lab else None
+    return np.concatenate(
+        [r.bias, [r.gain, r.contact, r.truth["friction"]], r.truth["lengths"], offsets,
+         r.field(np.array([[0.1, -0.2]])), [] if told is None else told]
+    )  # fmt: skip
+
+
+def test_a_lab_keeps_its_table_calibration_robot_and_objects_for_every_episode():
+    r = TargetWorldRobot(SETTING, seed=3, masses=(2.0, 6.0), lab=4)
+    first = r.start()
+    kept = lab_constants(r)
+    pose = r.sim.config()
+    second = r.start()
+    np.testing.assert_array_equal(lab_constants(r), kept)
+    np.testing.assert_array_equal(first.lengths, second.lengths)  # told the same lengths
+    assert not np.allclose(r.sim.config(), pose)  # placed anew on the table
+    # Without a lab the same two episodes differ in all of it.
+    r = robot()
+    r.start()
+    drawn = lab_constants(r)
+    r.start()
+    assert not np.isin(lab_constants(r), drawn).any()
+
+
+def test_a_lab_places_the_chain_as_the_same_seed_does_without_it():
+    with_lab = TargetWorldRobot(SETTING, seed=3, masses=(2.0, 6.0), lab=4)
+    with_lab.start()
+    r = robot()
+    r.start()
+    # The pose is drawn as without a lab; the lengths are the lab's, so the joint is elsewhere.
+    np.testing.assert_allclose(with_lab.sim.config()[2:], r.sim.config()[2:], atol=0.02)
+
+
+def test_each_object_of_a_lab_has_its_own_centre_of_mass_offsets():
+    def offsets(masses, lab=4, seed=3):
+        r = TargetWorldRobot(SETTING, seed=seed, masses=masses, lab=lab)
+        r.start()
+        return r.sim.model.body_ipos[r.sim.model.geom_bodyid[r._boxes], 0].copy()
+
+    same = offsets((2.0, 6.0))
+    np.testing.assert_array_equal(offsets((2.0, 6.0), seed=9), same)
+    assert not np.allclose(offsets((6.0, 2.0)), same)
+    assert not np.allclose(offsets((2.0, 6.0), lab=5), same)
+    centred = TargetWorldRobot(SETTING, TargetWorld(com_offset=0.0), seed=3, masses=(2.0, 6.0),
+                               lab=4)  # fmt: skip
+    centred.start()
+    shift = same - centred.sim.model.body_ipos[centred.sim.model.geom_bodyid[centred._boxes], 0]
+    assert 0 < np.abs(shift).max() <= TargetWorld().com_offset
+
+
+def test_a_lab_cannot_be_drawn_from_world_ranges():
+    with pytest.raises(ValueError, match="lab"):
+        TargetWorldRobot(SETTING, WorldRanges(), lab=0)
+
+
 def test_make_robot_knows_the_target_backend():
     r = make_robot("target", SETTING, seed=1)
     assert isinstance(r, TargetWorldRobot) and r.n_links == 2
+    assert make_robot("target", SETTING, lab=2).lab.seed == 2
+    with pytest.raises(ValueError, match="lab"):
+        make_robot("stiff", SETTING, lab=2)
 
 
 @pytest.mark.parametrize(

@@ -36,7 +36,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     """Estimation episodes through a robot backend, the estimate printed after each push."""
     from masspush.evaluate import model_policy, resolve_model
     from masspush.predictor import load_model
-    from masspush.robot import RecordedPolicy, fmt, make_robot, print_push, run_estimation
+    from masspush.robot import RecordedPolicy, fmt, make_robot, print_push, run_segments
     from masspush.settings import get_setting
 
     setting = get_setting(args.setting, args.settings_file)
@@ -45,7 +45,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     masses = None if args.masses is None else tuple(float(m) for m in args.masses.split(","))
     if masses is not None and args.robot == "replay":
         raise ValueError("--masses pins a simulated chain's masses; a replay has its own")
-    robot = make_robot(args.robot, setting, args.episodes_file, args.seed, masses)
+    if args.segments != 1 and args.robot == "replay":
+        raise ValueError("--segments runs the policy again; a replay plays its recorded pushes")
+    robot = make_robot(args.robot, setting, args.episodes_file, args.seed, masses, args.lab)
     if robot.n_links != setting.n_links:
         raise ValueError(
             f"the robot's chain has {robot.n_links} links, setting {setting.name!r} has "
@@ -63,9 +65,12 @@ def cmd_run(args: argparse.Namespace) -> int:
     try:
         for i in range(count):
             print(f"episode {i + 1}:")
-            episode = run_estimation(
-                robot, predictor, policy, pushes, print_push, seed=args.seed + i
+            episode = run_segments(
+                robot, predictor, policy, pushes, args.segments, print_push, seed=args.seed + i
             )
+            if len(episode.run_estimates) > 1:
+                mean = np.mean(episode.run_estimates, axis=0)
+                print(f"  estimate {fmt(mean)}, averaged over {len(episode.run_estimates)} runs")
             truth = getattr(robot, "truth", {})
             if "mass_distribution" in truth:
                 print(f"  truth    {fmt(truth['mass_distribution'])}")
@@ -130,8 +135,10 @@ def cmd_finetune(args: argparse.Namespace) -> int:
         print(f"fine-tuned predictor: {out}")
         return 0
     labels, classes = labelled(recording)
-    config = ClassifierConfig(folds=args.folds, features=args.features, seed=args.seed)
-    features = predictor_features(predictor, episodes, config.features)
+    config = ClassifierConfig(
+        folds=args.folds, features=args.features, segment=args.segment, seed=args.seed
+    )
+    features = predictor_features(predictor, episodes, config.features, config.segment)
     scores = cross_validate(features, labels, len(classes), config)
     print(
         f"{len(labels)} episodes, {len(classes)} classes: {args.folds}-fold cross-validated "
@@ -142,7 +149,7 @@ def cmd_finetune(args: argparse.Namespace) -> int:
         print("  " + " ".join(f"{v:4d}" for v in row))
     model = fit_classifier(features, labels, len(classes), config)
     info = {"setting": setting.name, "predictor": str(path), "predictor_meta": meta,
-            "features": config.features,
+            "features": config.features, "segment": config.segment,
             "episodes": str(args.episodes), "cross_validation": scores}  # fmt: skip
     print(f"saved {save_classifier(args.out, model, classes, config, info)} (trained on all)")
     return 0
@@ -160,7 +167,7 @@ def cmd_classify(args: argparse.Namespace) -> int:
     predictor, _ = load_model(meta["predictor"], meta["setting"])
     recording = read_recording(args.episodes)
     kind = meta.get("features", "estimate")
-    features = predictor_features(predictor, recording.to_episodes(), kind)
+    features = predictor_features(predictor, recording.to_episodes(), kind, meta.get("segment", 0))
     with torch.no_grad():
         probs = torch.softmax(model(torch.as_tensor(features)), dim=1).numpy()
     right = 0
@@ -187,6 +194,8 @@ def cmd_sim2real(args: argparse.Namespace) -> int:
         seed=args.seed,
         world=args.world,
         severity=args.severity,
+        lab=args.lab,
+        segments=args.segments,
         classifier=ClassifierConfig(folds=args.folds, seed=args.seed),
         models={"random": args.random_model, "learned": args.learned_model},
     )
@@ -802,6 +811,15 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--record", default=None, help="write the session as a recording")
     run.add_argument("--masses", default=None, help="simulated: pin link masses, kg 'm1,m2'")
     run.add_argument("--label", default=None, help="class label written into the recording")
+    run.add_argument(
+        "--segments", type=int, default=1,
+        help="run the policy this many times in a row on each chain (each --pushes pushes) "
+        "and average the runs' estimates",
+    )  # fmt: skip
+    run.add_argument(
+        "--lab", type=int, default=None, metavar="SEED",
+        help="target: keep one lab's table, calibration, robot and chains for every episode",
+    )  # fmt: skip
     run.set_defaults(func=cmd_run)
 
     ft = sub.add_parser(
@@ -814,6 +832,11 @@ def build_parser() -> argparse.ArgumentParser:
     ft.add_argument("--out", default="classifier.pt", help="where to save the classifier")
     ft.add_argument("--folds", type=int, default=5, help="cross-validation folds")
     ft.add_argument("--seed", type=int, default=0)
+    ft.add_argument(
+        "--segment", type=int, default=0, metavar="P",
+        help="the episodes are runs of P pushes each (recorded with --segments): read each run "
+        "on its own and average (default 0: read each episode whole)",
+    )  # fmt: skip
     ft.add_argument(
         "--features",
         default="estimate",
@@ -850,6 +873,16 @@ def build_parser() -> argparse.ArgumentParser:
         "--severity", type=float, default=1.0,
         help="scale the target world's differences from training: 1 as built, 0 none; how "
         "close to the simulation must a lab be?",
+    )  # fmt: skip
+    s2r.add_argument(
+        "--lab", type=int, default=None, metavar="SEED",
+        help="one lab: the target world's table, calibration, robot and chains drawn once "
+        "from SEED and kept for every episode, as in a real lab (default: drawn per episode)",
+    )  # fmt: skip
+    s2r.add_argument(
+        "--segments", type=int, default=1,
+        help="runs of each policy per episode, on the same chain one after the other; the "
+        "classifier reads their averaged estimate (1: the paper's protocol)",
     )  # fmt: skip
     s2r.add_argument("--random-model", default="rp", help="the random-push arm's model")
     s2r.add_argument("--learned-model", default="tp+", help="the learned arm's model, e.g. tp+dr")

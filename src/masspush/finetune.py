@@ -15,7 +15,7 @@ fine-tunes the predictor itself.
 from __future__ import annotations
 
 import os
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +24,7 @@ import torch
 from torch import nn
 
 from masspush.predictor import MassPredictor, step_inputs
-from masspush.rollout import Episodes
+from masspush.rollout import Episodes, empty_episodes
 
 PAPER_CLASSES: dict[str, tuple[float, float]] = {
     "0.160-0.160": (0.16, 0.16),
@@ -54,6 +54,10 @@ class ClassifierConfig:
     features: str = "estimate"
     """"estimate": log of the predictor's final estimate [ours]; "lstm": its LSTM output
     after the last push [paper]."""
+    segment: int = 0
+    """0: the predictor reads each episode whole. P > 0: an episode is consecutive runs of
+    P pushes (the policy run again from where it stopped, `masspush.robot.run_segments`);
+    the predictor reads each run on its own and the features are averaged over the runs."""
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -65,6 +69,8 @@ class ClassifierConfig:
             raise ValueError(f"features must be one of {FEATURE_KINDS}, got {self.features!r}")
         if self.folds < 2:
             raise ValueError(f"folds must be >= 2, got {self.folds}")
+        if self.segment < 0:
+            raise ValueError(f"segment must be >= 0 pushes, got {self.segment}")
 
 
 class MassClassifier(nn.Module):
@@ -85,13 +91,55 @@ class MassClassifier(nn.Module):
         return self.net((x - self.mean) / self.std)
 
 
+def segments_of(episodes: Episodes, pushes: int) -> tuple[Episodes, np.ndarray]:
+    """Each episode cut into consecutive runs of `pushes` pushes, each starting from the
+    rest pose the last one ended in: the runs with at least one push seen, and the episode
+    each came from."""
+    if pushes < 1:
+        raise ValueError(f"a segment needs at least one push, got {pushes}")
+    per_pose, per_push = ("observations", "configs"), ("actions", "executed", "failure")
+    k = episodes.actions.shape[1]
+    whole = -(-k // pushes) * pushes
+    padded = empty_episodes(len(episodes), whole, episodes.lengths.shape[1])
+    for name in per_pose + per_push:
+        value = getattr(episodes, name)
+        getattr(padded, name)[:, : value.shape[1]] = value
+    per_episode = {
+        f.name: getattr(episodes, f.name)
+        for f in fields(Episodes)
+        if f.name not in per_pose + per_push
+    }
+    parts, owner = [], []
+    for start in range(0, whole, pushes):
+        part = Episodes(
+            **per_episode,
+            **{name: getattr(padded, name)[:, start : start + pushes + 1] for name in per_pose},
+            **{name: getattr(padded, name)[:, start : start + pushes] for name in per_push},
+        )
+        keep = part.seen.any(axis=1)
+        parts.append(part.select(keep))
+        owner.append(np.flatnonzero(keep))
+    return Episodes.concatenate(parts), np.concatenate(owner)
+
+
 def predictor_features(
-    predictor: MassPredictor, episodes: Episodes, kind: str = "estimate"
+    predictor: MassPredictor, episodes: Episodes, kind: str = "estimate", segment: int = 0
 ) -> np.ndarray:
     """What the classifier sees of each episode, after its last recorded push: the log of
-    the predictor's estimate (E, n), or the predictor's LSTM output (E, 64)."""
+    the predictor's estimate (E, n), or the predictor's LSTM output (E, 64). With `segment`
+    P > 0, each run of P pushes is read on its own (`segments_of`) and the estimates (or
+    LSTM outputs) are averaged over an episode's runs."""
     if kind not in FEATURE_KINDS:
         raise ValueError(f"features must be one of {FEATURE_KINDS}, got {kind!r}")
+    if segment:
+        parts, owner = segments_of(episodes, segment)
+        out = predictor_features(predictor, parts, kind)
+        if kind == "estimate":
+            out = np.exp(out)
+        total = np.zeros((len(episodes), out.shape[1]))
+        np.add.at(total, owner, out)
+        mean = total / np.bincount(owner, minlength=len(episodes))[:, None]
+        return (np.log(mean) if kind == "estimate" else mean).astype(np.float32)
     q0, steps = step_inputs(episodes, predictor.features_kind)
     with torch.no_grad():
         predictor.eval()

@@ -71,13 +71,21 @@ class SimRobot:
         pusher: str | None = None,
         seed: int = 0,
         masses: tuple[float, ...] | None = None,
+        pushes: int | None = None,
     ):
+        from dataclasses import replace
+
         from masspush.env import ChainEnv
         from masspush.settings import get_setting
 
         self.setting = get_setting(setting) if isinstance(setting, str) else setting
         self.pusher = pusher or self.setting.pusher
-        self.env = ChainEnv.from_config(self.setting.env_config(self.pusher))
+        config = self.setting.env_config(self.pusher)
+        # The environment ends an episode after the setting's pushes unless told otherwise
+        # (runs of the policy, `run_segments`, push on).
+        if pushes is not None:
+            config = replace(config, pushes=pushes)
+        self.env = ChainEnv.from_config(config)
         self.n_links = self.setting.n_links
         self.seed = seed
         self.options = None if masses is None else {"masses": list(masses)}
@@ -184,6 +192,8 @@ class EstimationEpisode:
     actions: list[np.ndarray] = field(default_factory=list)
     reports: list[PushReport] = field(default_factory=list)
     estimates: list[np.ndarray] = field(default_factory=list)
+    run_estimates: list[np.ndarray] = field(default_factory=list)
+    """Each run's last estimate, when the episode is runs of the policy (`run_segments`)."""
 
     @property
     def failure(self) -> str | None:
@@ -255,6 +265,47 @@ def run_estimation(
     return episode
 
 
+def run_segments(
+    robot: Robot,
+    predictor,
+    policy,
+    pushes: int,
+    segments: int,
+    on_push: PushCallback | None = None,
+    seed: int = 0,
+) -> EstimationEpisode:
+    """`segments` episodes of `pushes` pushes in a row on the same chain, each starting where
+    the last one left it, the policy and the predictor starting afresh each time: one
+    episode of up to segments x pushes pushes (`masspush.finetune.segments_of` cuts it back).
+    Its estimates are each segment's own. With one segment this is `run_estimation`."""
+    if segments < 1:
+        raise ValueError(f"segments must be >= 1, got {segments}")
+    rest = robot.start()
+    whole = EstimationEpisode(rest)
+    for s in range(segments):
+        told = None if on_push is None else _numbered_from(s * pushes, on_push)
+        part = run_estimation(
+            robot, predictor, policy, pushes, told, start=rest, seed=seed * segments + s
+        )
+        whole.actions += part.actions
+        whole.reports += part.reports
+        whole.estimates += part.estimates
+        whole.run_estimates += part.estimates[-1:]
+        if part.failure is not None:
+            break
+        rest = RestPose(part.reports[-1].config, rest.lengths)
+    return whole
+
+
+def _numbered_from(first: int, on_push: PushCallback) -> PushCallback:
+    """`on_push` hearing a run's pushes numbered on from `first`."""
+
+    def told(k, action, report, estimate) -> None:
+        on_push(first + k, action, report, estimate)
+
+    return told
+
+
 def print_push(k: int, action: np.ndarray, result: PushReport, estimate) -> None:
     """The plain report of a push, for `masspush run`."""
     if result.failure is not None:
@@ -270,17 +321,21 @@ def make_robot(
     recording: str | None = None,
     seed: int = 0,
     masses: tuple[float, ...] | None = None,
+    lab: int | None = None,
 ) -> Robot:
     """A robot by backend name: stiff, kuka, ur10 (simulated), target (the sim-to-real
-    target world, `masspush.target_world`) or replay (a recording)."""
+    target world, `masspush.target_world`; `lab` keeps one lab's constants) or replay (a
+    recording)."""
     from masspush.pusher import PUSHERS
 
+    if lab is not None and backend != "target":
+        raise ValueError(f"a lab is one draw of the target world; backend {backend!r} has none")
     if backend in PUSHERS:
         return SimRobot(setting, backend, seed, masses)
     if backend == "target":
         from masspush.target_world import TargetWorldRobot
 
-        return TargetWorldRobot(setting, seed=seed, masses=masses)
+        return TargetWorldRobot(setting, seed=seed, masses=masses, lab=lab)
     if backend == "replay":
         if recording is None:
             raise ValueError("the replay backend needs --episodes FILE (a recording)")

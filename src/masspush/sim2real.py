@@ -11,7 +11,7 @@ re-scores; `masspush finetune` on them gives the same accuracies.
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -49,6 +49,14 @@ class Sim2RealConfig:
     severity: float = 1.0
     """The target world's differences from training, scaled (`target_world.scaled_world`):
     1 the target world, 0 the training world's knobs; only with world "target"."""
+    lab: int | None = None
+    """None: every episode draws the target world's constants afresh (a lab of its own per
+    episode, the stress test); a seed: one lab's constants for all episodes and each class's
+    object its own (`target_world.Lab`), as in a real lab; only with world "target"."""
+    segments: int = 1
+    """Each episode runs the policy this many times in a row on the same chain, each run the
+    setting's pushes (`masspush.robot.run_segments`); the classifier reads the runs'
+    averaged estimate. 1: the paper's protocol."""
     classifier: ClassifierConfig = field(default_factory=ClassifierConfig)
     models: dict[str, str] = field(default_factory=lambda: dict(ARMS))
     """Each arm's model (shipped name or path): its policy pushes, its predictor's
@@ -63,6 +71,10 @@ class Sim2RealConfig:
             raise ValueError(f"severity must be in [0, 1], got {self.severity!r}")
         if self.world != "target" and self.severity != 1:
             raise ValueError("severity scales the target world; it needs world 'target'")
+        if self.segments < 1:
+            raise ValueError(f"segments must be >= 1, got {self.segments}")
+        if self.world != "target" and self.lab is not None:
+            raise ValueError("a lab is one draw of the target world; it needs world 'target'")
         if self.episodes_per_class < self.classifier.folds:
             raise ValueError(
                 f"episodes_per_class must be >= the {self.classifier.folds} folds, "
@@ -79,7 +91,7 @@ def record_classes(
     failed pushes by reason. `target` replaces the target world (default: the target world
     at `config.severity`)."""
     from masspush.recording import Recording
-    from masspush.robot import SimRobot, run_estimation
+    from masspush.robot import SimRobot, run_segments
     from masspush.settings import get_setting
     from masspush.target_world import TargetWorldRobot, scaled_world
 
@@ -95,13 +107,15 @@ def record_classes(
         # chains, frictions and biases, so the comparison is paired.
         first = config.seed + 100_000 * c
         robot = (
-            TargetWorldRobot(setting, world, seed=first, masses=masses)
+            TargetWorldRobot(setting, world, seed=first, masses=masses, lab=config.lab)
             if config.world == "target"
-            else SimRobot(setting, seed=first, masses=masses)
+            else SimRobot(setting, seed=first, masses=masses, pushes=pushes * config.segments)
         )
         got = 0
         while got < config.episodes_per_class:
-            episode = run_estimation(robot, predictor, policy, pushes, seed=robot.seed)
+            episode = run_segments(
+                robot, predictor, policy, pushes, config.segments, seed=robot.seed
+            )
             if episode.failure is not None:
                 failures[episode.failure] = failures.get(episode.failure, 0) + 1
             if not episode.estimates:
@@ -134,6 +148,10 @@ def record_arm(
         robot_name = f"masspush {config.world} world"
         if config.severity != 1:
             robot_name += f" (differences x{config.severity:g})"
+        if config.lab is not None:
+            robot_name += f", lab {config.lab}"
+        if config.segments != 1:
+            robot_name += f", {config.segments} runs of the policy per episode"
         robot_name += "" if model == ARMS[arm] else f", {model}"
     if path.exists() and counts.exists():
         recording = read_recording(path)
@@ -162,6 +180,7 @@ def score_arm(config: Sim2RealConfig, arm: str, path: Path) -> dict[str, Any]:
     from masspush.metrics import percentage_error
     from masspush.predictor import load_model
     from masspush.recording import read_recording
+    from masspush.settings import get_setting
 
     recording = read_recording(path)
     model = config.models[arm]
@@ -169,12 +188,17 @@ def score_arm(config: Sim2RealConfig, arm: str, path: Path) -> dict[str, Any]:
     episodes = recording.to_episodes()
     labels, classes = labelled(recording)
     scores: dict[str, Any] = {"model": model, "classes": classes}
+    segment = 0 if config.segments == 1 else get_setting(config.setting).env_config().pushes
+    configs = {
+        kind: replace(config.classifier, features=kind, segment=segment)
+        for kind in ("estimate", "lstm")
+    }
     features = {
-        kind: predictor_features(predictor, episodes, kind) for kind in ("estimate", "lstm")
+        kind: predictor_features(predictor, episodes, kind, cfg.segment)
+        for kind, cfg in configs.items()
     }
     for kind, values in features.items():
-        cfg = ClassifierConfig(**{**asdict(config.classifier), "features": kind})
-        scores[kind] = cross_validate(values, labels, len(classes), cfg)
+        scores[kind] = cross_validate(values, labels, len(classes), configs[kind])
     # Without any fine-tuning: how far the simulation-trained estimate is from the truth.
     estimate = np.exp(features["estimate"])
     scores["percentage_error"] = percentage_error(estimate, episodes.mass_distribution)

@@ -16,6 +16,14 @@ a world built to differ from the one they were trained in the ways a real lab do
 - **actuation**: a per-episode gain on the push speed and bias on the contact point,
   on top of more noise than in training.
 
+By default every episode draws all of these afresh, as if each were run in a lab of its
+own: a stress test. A real lab has one table, one calibration, one robot and one set of
+objects, pushed again and again (the paper's UR10 pushed the same 3D-printed chains 30 times
+each). `Lab` is that: the table's friction and its field, the tracker's bias, the robot's
+speed gain and contact bias and the chain's lengths drawn once from a lab seed, each mass
+class's centre-of-mass offsets once per object; only the chain's pose on the table and the
+noise change between episodes.
+
 `TargetWorldRobot` is a `masspush.robot.Robot`: everything that runs on a robot runs in it
 (`masspush run --robot target`, `masspush sim2real`). Every number below is our own choice
 [ours]; docs/real-robot.md lists them beside the training world's.
@@ -273,10 +281,39 @@ class FrictionField:
         return self.mean * np.clip(1.0 + self.amplitude * waves, 0.5, 1.5)
 
 
+class Lab:
+    """One lab's constants in `world`, drawn once from `seed` [ours]: what stays the same
+    from one episode to the next in a real lab (see the module's docstring)."""
+
+    def __init__(self, seed: int, world: TargetWorld, physics: PhysicsConfig) -> None:
+        self.seed = seed
+        rng = np.random.default_rng([seed, 11])
+        n = physics.n_links
+        self.friction = float(rng.uniform(*world.friction_range))
+        self.field = FrictionField(self.friction, world, rng)
+        self.lengths = rng.uniform(*physics.length_range, size=n)
+        self.told_lengths = self.lengths + rng.normal(0, world.length_error, n)
+        self.bias = np.concatenate(
+            [rng.normal(0, world.obs_bias[0], 2), rng.normal(0, world.obs_bias[1], n)]
+        )
+        self.gain = float(rng.uniform(*world.speed_gain))
+        self.contact = float(rng.normal(0, world.contact_bias))
+        self.com_offset = world.com_offset
+
+    def com_offsets(self, masses: np.ndarray) -> np.ndarray:
+        """Each link's centre-of-mass offset along it, m, for the object of these masses
+        (the same object, so the same offsets, whenever they recur)."""
+        grams = np.round(np.asarray(masses, dtype=float) * 1e6).astype(np.int64)
+        rng = np.random.default_rng([self.seed, 13, *grams.tolist()])
+        return rng.uniform(-self.com_offset, self.com_offset, size=len(grams))
+
+
 class TargetWorldRobot:
     """The target world as a robot: each `start` places a new chain of the setting (masses
     pinned if given) in a world that differs from training (`TargetWorld`), or in a world
-    drawn afresh from `WorldRanges` for each episode."""
+    drawn afresh from `WorldRanges` for each episode. With `lab` (a seed), the world's
+    per-episode constants are that one lab's (`Lab`); the episodes' other draws are made as
+    without it, so the same seed places the chain the same way in both."""
 
     def __init__(
         self,
@@ -285,6 +322,7 @@ class TargetWorldRobot:
         pusher: str | None = None,
         seed: int = 0,
         masses: tuple[float, ...] | None = None,
+        lab: int | None = None,
     ):
         from masspush.settings import get_setting
 
@@ -296,7 +334,12 @@ class TargetWorldRobot:
         self.pusher_name = pusher or self.setting.pusher
         self.n_links = self.setting.n_links
         self.seed = seed
-        self.pinned = None if masses is None else {"masses": list(masses)}
+        self.pinned = {} if masses is None else {"masses": list(masses)}
+        if lab is not None and self.ranges is not None:
+            raise ValueError("a lab is one world; it cannot be drawn from WorldRanges")
+        self.lab = None if lab is None else Lab(lab, self.world, self.physics)
+        if self.lab is not None:
+            self.pinned |= {"friction": self.lab.friction, "lengths": self.lab.lengths}
         self.truth: dict[str, Any] = {}
         self.sim: ChainSim | None = None
 
@@ -309,6 +352,9 @@ class TargetWorldRobot:
                 self.physics = self.world.physics(self.setting.physics())
             chain = sample_chain(self.physics, self.rng, self.pinned)
             self.field = FrictionField(chain.friction, self.world, self.rng)
+            self._chain = chain
+            if self.lab is not None:
+                self.field = self.lab.field
             self._boxes: list[int] = []
             self.sim = ChainSim(chain, self.physics, make_pusher(self.pusher_name), self._adjust)
             if self.sim.initial_failure is None:
@@ -324,6 +370,11 @@ class TargetWorldRobot:
         self.gain = self.rng.uniform(*w.speed_gain)
         self.contact = self.rng.normal(0, w.contact_bias)
         told = chain.lengths + self.rng.normal(0, w.length_error, n)
+        if self.lab is not None:
+            lab = self.lab
+            self.bias, self.gain, self.contact, told = (
+                lab.bias, lab.gain, lab.contact, lab.told_lengths
+            )  # fmt: skip
         self.truth = {
             "masses": np.array(chain.masses),
             "mass_distribution": chain.mass_distribution,
@@ -364,8 +415,11 @@ class TargetWorldRobot:
             model.geom_friction[g] = [self.field.mean, w.torsional_friction, 0.0001]
             model.geom_solref[g] = w.contact_solref
             model.geom_solimp[g, :3] = w.contact_solimp
-            body = model.geom_bodyid[g]
-            model.body_ipos[body, 0] += self.rng.uniform(-w.com_offset, w.com_offset)
+        offsets = self.rng.uniform(-w.com_offset, w.com_offset, size=len(boxes))
+        if self.lab is not None:
+            offsets = self.lab.com_offsets(self._chain.masses)
+        for g, offset in zip(boxes, offsets, strict=True):
+            model.body_ipos[model.geom_bodyid[g], 0] += offset
         self._boxes = boxes
 
     def _update_friction(self) -> None:
