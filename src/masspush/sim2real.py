@@ -5,7 +5,9 @@ TP+), episodes of the paper's five mass classes are run in `masspush.target_worl
 recorded like real ones (`masspush.recording`, labelled). A classifier on the predictor's
 features is then cross-validated on each recording, as the paper did with its UR10
 episodes [paper-details.md, "Real robot"]. Recordings are kept, so a rerun only
-re-scores; `masspush finetune` on them gives the same accuracies.
+re-scores; `masspush finetune` on them gives the same accuracies. `lab` keeps one lab's
+setup for every episode (`target_world.Lab`); `segments` runs each policy several times per
+episode and has the classifier read the runs' averaged estimate.
 """
 
 from __future__ import annotations

@@ -303,9 +303,9 @@ class Lab:
     def com_offsets(self, masses: np.ndarray) -> np.ndarray:
         """Each link's centre-of-mass offset along it, m, for the object of these masses
         (the same object, so the same offsets, whenever they recur)."""
-        grams = np.round(np.asarray(masses, dtype=float) * 1e6).astype(np.int64)
-        rng = np.random.default_rng([self.seed, 13, *grams.tolist()])
-        return rng.uniform(-self.com_offset, self.com_offset, size=len(grams))
+        milligrams = np.round(np.asarray(masses, dtype=float) * 1e6).astype(np.int64)
+        rng = np.random.default_rng([self.seed, 13, *milligrams.tolist()])
+        return rng.uniform(-self.com_offset, self.com_offset, size=len(milligrams))
 
 
 class TargetWorldRobot:
