@@ -6,6 +6,7 @@ from masspush.evaluate import resolve_model
 from masspush.finetune import (
     ClassifierConfig,
     cross_validate,
+    first_pushes,
     labelled,
     load_classifier,
     predictor_features,
@@ -51,6 +52,10 @@ def test_a_classifier_on_predictor_features_beats_chance(labelled_recording):
     assert scores["chance"] == pytest.approx(1 / 3, abs=0.05)
     assert scores["accuracy"] > 0.7  # chance is a third
     assert np.sum(scores["confusion"]) == len(labels)
+    # Each episode's out-of-fold guess, consistent with the confusion matrix.
+    again = np.zeros_like(scores["confusion"])
+    np.add.at(again, (labels, scores["predicted"]), 1)
+    np.testing.assert_array_equal(again, scores["confusion"])
 
 
 def test_finetune_and_classify_commands(labelled_recording, tmp_path, capsys):
@@ -111,6 +116,19 @@ def test_segment_features_average_what_each_run_estimated(tmp_path):
     assert not np.allclose(whole, features, atol=1e-3)
     lstm = predictor_features(predictor, episodes, "lstm", segment=2)
     assert lstm.shape == (4, 64)
+
+
+def test_an_episode_cut_after_its_first_runs_averages_only_those(tmp_path):
+    predictor, runs = segmented_recording(tmp_path / "runs.jsonl")
+    episodes = read_recording(tmp_path / "runs.jsonl").to_episodes()
+    cut = first_pushes(episodes, 4)
+    assert cut.actions.shape[1] == 4 and cut.observations.shape[1] == 5
+    np.testing.assert_array_equal(cut.observations, episodes.observations[:, :5])
+    features = predictor_features(predictor, cut, "estimate", segment=2)
+    expected = np.log([np.mean(r.run_estimates[:2], axis=0) for r in runs])
+    np.testing.assert_allclose(features, expected, atol=1e-5)
+    with pytest.raises(ValueError, match="at least one push"):
+        first_pushes(episodes, 0)
 
 
 def test_an_unfinished_run_counts_with_the_pushes_it_saw(tmp_path):

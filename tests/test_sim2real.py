@@ -5,7 +5,13 @@ import pytest
 
 from masspush.finetune import PAPER_CLASSES, ClassifierConfig
 from masspush.recording import read_recording
-from masspush.sim2real import Sim2RealConfig, run_sim2real
+from masspush.sim2real import (
+    Sim2RealConfig,
+    paired_test,
+    plot_accuracy_by_pushes,
+    run_counts,
+    run_sim2real,
+)
 
 # The shipped 2link-1-10 models (stiff pusher, fast) stand in for real-ur10's here.
 CONFIG = Sim2RealConfig(
@@ -135,6 +141,57 @@ def test_one_lab_with_runs_of_the_policy(tmp_path):
     assert len({tuple(e["lengths"]) for e in recording.episodes}) == 1
     # Two runs of the setting's 2 pushes, unless a push failed.
     assert max(len(e["actions"]) for e in recording.episodes) == 4
-    assert 0 <= results["arms"]["learned"]["estimate"]["accuracy"] <= 1
+    learned = results["arms"]["learned"]
+    assert 0 <= learned["estimate"]["accuracy"] <= 1
+    # The same episodes scored as if they had stopped after 1 run, then all of them.
+    assert [(s["runs"], s["pushes"]) for s in learned["by_runs"]] == [(1, 2), (2, 4)]
+    assert learned["by_runs"][-1]["accuracy"] == learned["estimate"]["accuracy"]
+    assert "| 2 (1 runs) |" in (tmp_path / "summary.md").read_text()
+    assert (tmp_path / "accuracy-by-pushes.png").stat().st_size > 0
     with pytest.raises(ValueError, match="segments"):
         Sim2RealConfig(segments=0)
+    # Several labs in one figure; results of unlike lengths are refused.
+    plot_accuracy_by_pushes({"lab 3": results, "again": results}, tmp_path / "labs.png")
+    assert (tmp_path / "labs.png").stat().st_size > 0
+    shorter = json.loads(json.dumps(results))
+    for arm in shorter["arms"].values():
+        arm["by_runs"] = arm["by_runs"][:1]
+    with pytest.raises(ValueError, match="same segments"):
+        plot_accuracy_by_pushes({"a": results, "b": shorter}, tmp_path / "bad.png")
+
+
+def test_the_arms_are_compared_on_the_same_chains(run):
+    out, results = run
+    paired = results["paired"]
+    learned, random = results["arms"]["learned"], results["arms"]["random"]
+    assert learned["ids"] == random["ids"]
+    truth = np.array(learned["labels"])
+    right = {arm: np.array(r["estimate"]["predicted"]) == truth for arm, r in
+             results["arms"].items()}  # fmt: skip
+    assert paired["only_learned"] == np.sum(right["learned"] & ~right["random"])
+    assert "McNemar" in (out / "summary.md").read_text()
+
+
+def test_paired_test_is_the_exact_mcnemar_test():
+    truth = np.zeros(10, np.int64)
+    wrong_twice = np.array([1] * 8 + [0] * 2)
+    p = paired_test(truth, truth, wrong_twice)
+    assert (p["only_learned"], p["only_random"]) == (8, 0)
+    assert p["p_value"] == pytest.approx(2 / 2**8)
+    assert paired_test(truth, wrong_twice, truth)["p_value"] == p["p_value"]
+    assert paired_test(truth, truth, truth) == {"only_learned": 0, "only_random": 0, "p_value": 1.0}
+    # 3 against 1: two-sided tail 2 * (1 + 4) / 16.
+    mixed = paired_test(truth[:4], np.array([0, 0, 0, 1]), np.array([1, 1, 1, 0]))
+    assert mixed["p_value"] == pytest.approx(10 / 16)
+
+
+def test_a_single_run_has_no_curve_over_runs(run):
+    out, results = run
+    assert "by_runs" not in results["arms"]["learned"]
+    assert not (out / "accuracy-by-pushes.png").exists()
+
+
+def test_run_counts_double_up_to_all_runs():
+    assert run_counts(1) == [1]
+    assert run_counts(8) == [1, 2, 4, 8]
+    assert run_counts(6) == [1, 2, 4, 6]

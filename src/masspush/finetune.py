@@ -36,6 +36,8 @@ PAPER_CLASSES: dict[str, tuple[float, float]] = {
 """The real experiment's five mass pairs, kg [paper-details.md, "Real robot"]."""
 CLASSIFIER_FORMAT, CLASSIFIER_VERSION = "masspush-classifier", 1
 FEATURE_KINDS = ("estimate", "lstm")
+PER_POSE, PER_PUSH = ("observations", "configs"), ("actions", "executed", "failure")
+"""`Episodes` fields with one entry per rest pose (K + 1) and per push (K)."""
 
 
 @dataclass(frozen=True)
@@ -97,29 +99,43 @@ def segments_of(episodes: Episodes, pushes: int) -> tuple[Episodes, np.ndarray]:
     each came from."""
     if pushes < 1:
         raise ValueError(f"a segment needs at least one push, got {pushes}")
-    per_pose, per_push = ("observations", "configs"), ("actions", "executed", "failure")
     k = episodes.actions.shape[1]
     whole = -(-k // pushes) * pushes
     padded = empty_episodes(len(episodes), whole, episodes.lengths.shape[1])
-    for name in per_pose + per_push:
+    for name in PER_POSE + PER_PUSH:
         value = getattr(episodes, name)
         getattr(padded, name)[:, : value.shape[1]] = value
     per_episode = {
         f.name: getattr(episodes, f.name)
         for f in fields(Episodes)
-        if f.name not in per_pose + per_push
+        if f.name not in PER_POSE + PER_PUSH
     }
     parts, owner = [], []
     for start in range(0, whole, pushes):
         part = Episodes(
             **per_episode,
-            **{name: getattr(padded, name)[:, start : start + pushes + 1] for name in per_pose},
-            **{name: getattr(padded, name)[:, start : start + pushes] for name in per_push},
+            **{name: getattr(padded, name)[:, start : start + pushes + 1] for name in PER_POSE},
+            **{name: getattr(padded, name)[:, start : start + pushes] for name in PER_PUSH},
         )
         keep = part.seen.any(axis=1)
         parts.append(part.select(keep))
         owner.append(np.flatnonzero(keep))
     return Episodes.concatenate(parts), np.concatenate(owner)
+
+
+def first_pushes(episodes: Episodes, pushes: int) -> Episodes:
+    """Each episode as if it had stopped after its first `pushes` pushes (what a lab that
+    pushed less would have recorded)."""
+    if pushes < 1:
+        raise ValueError(f"an episode needs at least one push, got {pushes}")
+    return Episodes(
+        **{
+            f.name: getattr(episodes, f.name)[:, : pushes + (f.name in PER_POSE)]
+            if f.name in PER_POSE + PER_PUSH
+            else getattr(episodes, f.name)
+            for f in fields(Episodes)
+        }
+    )
 
 
 def predictor_features(
@@ -184,7 +200,8 @@ def stratified_folds(labels: np.ndarray, folds: int, seed: int) -> list[np.ndarr
 def cross_validate(
     features: np.ndarray, labels: np.ndarray, n_classes: int, config: ClassifierConfig
 ) -> dict[str, Any]:
-    """Stratified k-fold accuracy and the confusion matrix (rows: truth, columns: predicted)."""
+    """Stratified k-fold accuracy, the confusion matrix (rows: truth, columns: predicted)
+    and each episode's out-of-fold prediction."""
     counts = np.bincount(labels, minlength=n_classes)
     if counts.min() < config.folds:
         raise ValueError(
@@ -193,17 +210,20 @@ def cross_validate(
         )
     confusion = np.zeros((n_classes, n_classes), np.int64)
     per_fold = []
+    predicted = np.zeros(len(labels), np.int64)
     for test in stratified_folds(labels, config.folds, config.seed):
         train = np.setdiff1d(np.arange(len(labels)), test)
         model = fit_classifier(features[train], labels[train], n_classes, config)
         with torch.no_grad():
             guess = model(torch.as_tensor(features[test], dtype=torch.float32)).argmax(1).numpy()
         np.add.at(confusion, (labels[test], guess), 1)
+        predicted[test] = guess
         per_fold.append(float(np.mean(guess == labels[test])))
     return {
         "accuracy": float(np.trace(confusion) / confusion.sum()),
         "per_fold": per_fold,
         "confusion": confusion.tolist(),
+        "predicted": predicted.tolist(),
         "chance": float(counts.max() / counts.sum()),
     }
 

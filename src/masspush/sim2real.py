@@ -13,6 +13,7 @@ episode and has the classifier read the runs' averaged estimate.
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -24,6 +25,7 @@ from masspush.finetune import (
     PAPER_CLASSES,
     ClassifierConfig,
     cross_validate,
+    first_pushes,
     labelled,
     predictor_features,
 )
@@ -189,7 +191,12 @@ def score_arm(config: Sim2RealConfig, arm: str, path: Path) -> dict[str, Any]:
     predictor, _ = load_model(resolve_model(model, config.setting), config.setting)
     episodes = recording.to_episodes()
     labels, classes = labelled(recording)
-    scores: dict[str, Any] = {"model": model, "classes": classes}
+    scores: dict[str, Any] = {
+        "model": model,
+        "classes": classes,
+        "ids": [e["id"] for e in recording.episodes],
+        "labels": labels.tolist(),
+    }
     segment = 0 if config.segments == 1 else get_setting(config.setting).env_config().pushes
     configs = {
         kind: replace(config.classifier, features=kind, segment=segment)
@@ -204,7 +211,24 @@ def score_arm(config: Sim2RealConfig, arm: str, path: Path) -> dict[str, Any]:
     # Without any fine-tuning: how far the simulation-trained estimate is from the truth.
     estimate = np.exp(features["estimate"])
     scores["percentage_error"] = percentage_error(estimate, episodes.mass_distribution)
+    if config.segments > 1:
+        # What a lab that stopped after fewer runs would have got, from the same episodes.
+        scores["by_runs"] = []
+        for runs in run_counts(config.segments):
+            shorter = predictor_features(
+                predictor, first_pushes(episodes, runs * segment), "estimate", segment
+            )
+            cv = cross_validate(shorter, labels, len(classes), configs["estimate"])
+            scores["by_runs"].append(
+                {"runs": runs, "pushes": runs * segment, "accuracy": cv["accuracy"]}
+            )
     return scores
+
+
+def run_counts(segments: int) -> list[int]:
+    """1, 2, 4, ... runs, and all of them."""
+    counts = [2**i for i in range(segments.bit_length()) if 2**i < segments]
+    return [*counts, segments]
 
 
 def run_sim2real(
@@ -218,9 +242,73 @@ def run_sim2real(
         path = out / f"{arm}.jsonl"
         collected = record_arm(config, arm, path, progress)
         results["arms"][arm] = {**collected, **score_arm(config, arm, path)}
+    random, learned = results["arms"]["random"], results["arms"]["learned"]
+    if random["ids"] == learned["ids"]:  # the same chains, so a paired comparison
+        results["paired"] = paired_test(
+            np.array(learned["labels"]),
+            np.array(learned["estimate"]["predicted"]),
+            np.array(random["estimate"]["predicted"]),
+        )
     (out / "summary.json").write_text(json.dumps(results, indent=2) + "\n")
     (out / "summary.md").write_text(summary_markdown(results))
+    if config.segments > 1:
+        plot_accuracy_by_pushes({"": results}, out / "accuracy-by-pushes.png")
     return results
+
+
+def paired_test(truth: np.ndarray, learned: np.ndarray, random: np.ndarray) -> dict[str, Any]:
+    """Exact McNemar test on the same episodes classified after each arm's pushes: the
+    episodes only one arm got right, and the two-sided p-value of so uneven a split if
+    neither arm were better."""
+    a, b = learned == truth, random == truth
+    only_learned, only_random = int(np.sum(a & ~b)), int(np.sum(~a & b))
+    n, k = only_learned + only_random, min(only_learned, only_random)
+    tail = sum(math.comb(n, i) for i in range(k + 1)) / 2**n if n else 1.0
+    return {
+        "only_learned": only_learned,
+        "only_random": only_random,
+        "p_value": min(1.0, 2 * tail),
+    }
+
+
+def plot_accuracy_by_pushes(runs: dict[str, dict[str, Any]], path: str | Path) -> Path:
+    """Accuracy against pushes per episode for each arm, from `sim2real` results with
+    `segments` > 1: one thin line per named result (e.g. per lab), and with several of
+    them their mean in bold; the paper's real-robot accuracies dashed."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for arm, colour in zip(ARMS, ("tab:grey", "tab:blue"), strict=True):
+        curves = [r["arms"][arm]["by_runs"] for r in runs.values()]
+        pushes = [step["pushes"] for step in curves[0]]
+        if any([step["pushes"] for step in c] != pushes for c in curves):
+            raise ValueError("the results were not run with the same segments and setting")
+        acc = 100 * np.array([[step["accuracy"] for step in c] for c in curves])
+        single = len(runs) == 1
+        for name, row in zip(runs, acc, strict=True):
+            label = f"{arm} {name}".strip() if single else None
+            ax.plot(pushes, row, color=colour, lw=2 if single else 1, alpha=0.8, marker="o",
+                    ms=3, label=label)  # fmt: skip
+        if not single:
+            ax.plot(pushes, acc.mean(0), color=colour, lw=3, marker="o",
+                    label=f"{arm}, mean of {len(runs)}")  # fmt: skip
+        ax.axhline(PAPER_ACCURACY[arm], color=colour, ls="--", lw=1,
+                   label=f"paper, {arm} (real UR10, 2 pushes)")  # fmt: skip
+    ax.axhline(90, color="tab:green", ls=":", lw=1, label="goal: 90 %")
+    ax.set_xscale("log", base=2)
+    ax.set_xticks(pushes, [str(p) for p in pushes])
+    ax.set_xlabel("pushes per episode")
+    ax.set_ylabel("classifier accuracy, % (chance 20 %)")
+    ax.set_ylim(0, 100)
+    ax.legend(fontsize=8, loc="lower right")
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
 
 
 def summary_markdown(results: dict[str, Any]) -> str:
@@ -237,6 +325,24 @@ def summary_markdown(results: dict[str, Any]) -> str:
             f"| {100 * r['estimate']['chance']:.0f} % | {r['percentage_error']:.2f} "
             f"| {sum(r.get('failed_pushes', {}).values())} |"
         )
+    if "paired" in results:
+        p = results["paired"]
+        lines += ["", f"Paired (the same chains): {p['only_learned']} episodes only the learned "
+                  f"policy's got right, {p['only_random']} only the random pushes'; exact "
+                  f"McNemar p = {p['p_value']:.2g}."]  # fmt: skip
+    by_runs = {arm: r["by_runs"] for arm, r in results["arms"].items() if "by_runs" in r}
+    if by_runs:
+        steps = next(iter(by_runs.values()))
+        lines += ["", "Accuracy (estimate features) had each episode stopped after fewer runs "
+                  "of the policy:", "",
+                  "| pushes per episode | " + " | ".join(by_runs) + " |",
+                  "|---" * (len(by_runs) + 1) + "|"]  # fmt: skip
+        for i, step in enumerate(steps):
+            lines.append(
+                f"| {step['pushes']} ({step['runs']} runs) | "
+                + " | ".join(f"{100 * r[i]['accuracy']:.1f} %" for r in by_runs.values())
+                + " |"
+            )
     for arm, r in results["arms"].items():
         classes = r["classes"]
         lines += ["", f"Confusion, {arm} policy, estimate features (rows: truth, columns: "
