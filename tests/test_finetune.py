@@ -159,3 +159,14 @@ def test_finetune_and_classify_read_runs_as_recorded(tmp_path, capsys):
     capsys.readouterr()
     assert main(["classify", "--classifier", str(out), "--episodes", args[-1]]) == 0
     assert "accuracy on the 6 labelled" in capsys.readouterr().out
+
+
+def test_the_classifier_trains_on_one_thread_and_gives_the_rest_back():
+    import torch
+
+    from masspush.finetune import one_thread
+
+    before = torch.get_num_threads()
+    with one_thread():
+        assert torch.get_num_threads() == 1
+    assert torch.get_num_threads() == before

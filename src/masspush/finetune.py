@@ -15,6 +15,8 @@ fine-tunes the predictor itself.
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from typing import Any
@@ -170,6 +172,26 @@ def fit_classifier(
     features: np.ndarray, labels: np.ndarray, n_classes: int, config: ClassifierConfig
 ) -> MassClassifier:
     """A classifier trained on all the given episodes."""
+    with one_thread():
+        return _fit(features, labels, n_classes, config)
+
+
+@contextmanager
+def one_thread() -> Iterator[None]:
+    """Torch on one thread for the while: a classifier this small trains ~10x faster so
+    when the other cores are busy (13 s against 1.4 s for 400 steps beside a simulation on
+    2 cores), where torch's thread pool waits on them."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(threads)
+
+
+def _fit(
+    features: np.ndarray, labels: np.ndarray, n_classes: int, config: ClassifierConfig
+) -> MassClassifier:
     torch.manual_seed(config.seed)
     model = MassClassifier(features.shape[1], n_classes, config.hidden)
     model.mean.copy_(torch.as_tensor(features.mean(0)))
