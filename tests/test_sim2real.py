@@ -146,7 +146,7 @@ def test_one_lab_with_runs_of_the_policy(tmp_path):
     # The same episodes scored as if they had stopped after 1 run, then all of them.
     assert [(s["runs"], s["pushes"]) for s in learned["by_runs"]] == [(1, 2), (2, 4)]
     assert learned["by_runs"][-1]["accuracy"] == learned["estimate"]["accuracy"]
-    assert "| 2 (1 runs) |" in (tmp_path / "summary.md").read_text()
+    assert "| 2 (1 run) |" in (tmp_path / "summary.md").read_text()
     assert (tmp_path / "accuracy-by-pushes.png").stat().st_size > 0
     with pytest.raises(ValueError, match="segments"):
         Sim2RealConfig(segments=0)

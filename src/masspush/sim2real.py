@@ -339,7 +339,7 @@ def summary_markdown(results: dict[str, Any]) -> str:
                   "|---" * (len(by_runs) + 1) + "|"]  # fmt: skip
         for i, step in enumerate(steps):
             lines.append(
-                f"| {step['pushes']} ({step['runs']} runs) | "
+                f"| {step['pushes']} ({step['runs']} run{'s' * (step['runs'] > 1)}) | "
                 + " | ".join(f"{100 * r[i]['accuracy']:.1f} %" for r in by_runs.values())
                 + " |"
             )
