@@ -173,7 +173,22 @@ def fit_classifier(
 ) -> MassClassifier:
     """A classifier trained on all the given episodes."""
     with one_thread():
-        return _fit(features, labels, n_classes, config)
+        torch.manual_seed(config.seed)
+        model = MassClassifier(features.shape[1], n_classes, config.hidden)
+        model.mean.copy_(torch.as_tensor(features.mean(0)))
+        model.std.copy_(torch.as_tensor(np.maximum(features.std(0), 1e-6)))
+        x, y = torch.as_tensor(features, dtype=torch.float32), torch.as_tensor(labels)
+        optimiser = torch.optim.Adam(
+            model.parameters(), config.lr, weight_decay=config.weight_decay
+        )
+        loss_fn = nn.CrossEntropyLoss()
+        model.train()
+        for _ in range(config.epochs):
+            optimiser.zero_grad()
+            loss_fn(model(x), y).backward()
+            optimiser.step()
+        model.eval()
+        return model
 
 
 @contextmanager
@@ -187,25 +202,6 @@ def one_thread() -> Iterator[None]:
         yield
     finally:
         torch.set_num_threads(threads)
-
-
-def _fit(
-    features: np.ndarray, labels: np.ndarray, n_classes: int, config: ClassifierConfig
-) -> MassClassifier:
-    torch.manual_seed(config.seed)
-    model = MassClassifier(features.shape[1], n_classes, config.hidden)
-    model.mean.copy_(torch.as_tensor(features.mean(0)))
-    model.std.copy_(torch.as_tensor(np.maximum(features.std(0), 1e-6)))
-    x, y = torch.as_tensor(features, dtype=torch.float32), torch.as_tensor(labels)
-    optimiser = torch.optim.Adam(model.parameters(), config.lr, weight_decay=config.weight_decay)
-    loss_fn = nn.CrossEntropyLoss()
-    model.train()
-    for _ in range(config.epochs):
-        optimiser.zero_grad()
-        loss_fn(model(x), y).backward()
-        optimiser.step()
-    model.eval()
-    return model
 
 
 def stratified_folds(labels: np.ndarray, folds: int, seed: int) -> list[np.ndarray]:

@@ -213,15 +213,18 @@ def score_arm(config: Sim2RealConfig, arm: str, path: Path) -> dict[str, Any]:
     scores["percentage_error"] = percentage_error(estimate, episodes.mass_distribution)
     if config.segments > 1:
         # What a lab that stopped after fewer runs would have got, from the same episodes.
-        scores["by_runs"] = []
-        for runs in run_counts(config.segments):
+        # All runs were scored above.
+        accuracy = {config.segments: scores["estimate"]["accuracy"]}
+        for runs in run_counts(config.segments)[:-1]:
             shorter = predictor_features(
                 predictor, first_pushes(episodes, runs * segment), "estimate", segment
             )
             cv = cross_validate(shorter, labels, len(classes), configs["estimate"])
-            scores["by_runs"].append(
-                {"runs": runs, "pushes": runs * segment, "accuracy": cv["accuracy"]}
-            )
+            accuracy[runs] = cv["accuracy"]
+        scores["by_runs"] = [
+            {"runs": runs, "pushes": runs * segment, "accuracy": accuracy[runs]}
+            for runs in run_counts(config.segments)
+        ]
     return scores
 
 
