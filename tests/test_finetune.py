@@ -5,7 +5,9 @@ from masspush.cli import main
 from masspush.evaluate import resolve_model
 from masspush.finetune import (
     ClassifierConfig,
+    classifier_inputs,
     cross_validate,
+    episode_log_probs,
     first_pushes,
     labelled,
     load_classifier,
@@ -154,11 +156,77 @@ def test_finetune_and_classify_read_runs_as_recorded(tmp_path, capsys):
     segmented_recording(tmp_path / "runs.jsonl", episodes=6)
     out = tmp_path / "clf.pt"
     args = ["--setting", SETTING, "--model", "rp+", "--episodes", str(tmp_path / "runs.jsonl")]
-    assert main(["finetune", *args, "--out", str(out), "--folds", "3", "--segment", "2"]) == 0
-    assert load_classifier(out)[2]["segment"] == 2
-    capsys.readouterr()
-    assert main(["classify", "--classifier", str(out), "--episodes", args[-1]]) == 0
-    assert "accuracy on the 6 labelled" in capsys.readouterr().out
+    for runs in ("each", "average"):
+        assert main(["finetune", *args, "--out", str(out), "--folds", "3", "--segment", "2",
+                     "--runs", runs]) == 0  # fmt: skip
+        meta = load_classifier(out)[2]
+        assert (meta["segment"], meta["runs"]) == (2, runs)
+        capsys.readouterr()
+        assert main(["classify", "--classifier", str(out), "--episodes", args[-1]]) == 0
+        assert "accuracy on the 6 labelled" in capsys.readouterr().out
+
+
+def test_runs_read_one_by_one_are_classified_by_their_summed_log_probabilities(tmp_path):
+    import torch
+
+    from masspush.finetune import MassClassifier
+
+    predictor, runs = segmented_recording(tmp_path / "runs.jsonl")
+    episodes = read_recording(tmp_path / "runs.jsonl").to_episodes()
+    each = ClassifierConfig(segment=2, runs="each")
+    features, owner = classifier_inputs(predictor, episodes, each)
+    assert owner.tolist() == [0, 1, 2, 3] * 3  # 3 runs of 2 pushes per episode
+    np.testing.assert_allclose(np.exp(features[owner == 1]), runs[1].run_estimates, atol=1e-5)
+    averaged, one_each = classifier_inputs(predictor, episodes, ClassifierConfig(segment=2,
+                                           runs="average"))  # fmt: skip
+    assert averaged.shape == (4, 2) and one_each.tolist() == [0, 1, 2, 3]
+    torch.manual_seed(0)
+    model = MassClassifier(2, 3)
+    log_probs = episode_log_probs(model, features, owner, 4)
+    with torch.no_grad():
+        rows = torch.log_softmax(model(torch.as_tensor(features)), -1).numpy()
+    summed = np.stack([rows[owner == e].sum(0) for e in range(4)])
+    np.testing.assert_allclose(log_probs, summed - np.log(np.exp(summed).sum(1, keepdims=True)),
+                               atol=1e-5)  # fmt: skip
+    np.testing.assert_allclose(np.exp(log_probs).sum(1), 1, atol=1e-6)
+    with pytest.raises(ValueError, match="runs"):
+        ClassifierConfig(runs="median")
+
+
+def test_reading_runs_one_by_one_keeps_what_averaging_loses(monkeypatch):
+    """Two classes whose episodes have the same mean: one's runs land at +1 or -1, half of
+    each, the other's near 0. Averaged the classes overlap; read run by run they do not.
+    An episode's runs are never split between training and test."""
+    import masspush.finetune as finetune
+
+    rng = np.random.default_rng(0)
+    episodes, runs = 40, 8
+    labels = np.repeat([0, 1], episodes // 2)
+    owner = np.repeat(np.arange(episodes), runs)
+    halves = np.concatenate([rng.permutation([-1.0, 1.0] * (runs // 2)) for _ in labels])
+    spread = np.where(labels[owner] == 0, halves, 0.0)
+    features = (spread + rng.normal(0, 0.1, owner.size)).astype(np.float32)[:, None]
+    whose = dict(zip(features[:, 0].tolist(), owner.tolist(), strict=True))  # values unique
+    fitted = finetune.fit_classifier
+    trained_on: list[np.ndarray] = []
+
+    def spy(x, *args):
+        trained_on.append(np.array([whose[v] for v in x[:, 0].tolist()]))
+        return fitted(x, *args)
+
+    monkeypatch.setattr(finetune, "fit_classifier", spy)
+    config = ClassifierConfig(folds=4, segment=1)
+    each = cross_validate(features, labels, 2, config, owner)
+    for test, seen in zip(stratified_folds(labels, 4, config.seed), trained_on, strict=True):
+        assert not np.isin(seen, test).any()
+    assert len(trained_on) == 4 and all(len(seen) == 30 * runs for seen in trained_on)
+    monkeypatch.setattr(finetune, "fit_classifier", fitted)
+    mean = np.stack([features[owner == e, 0].mean() for e in range(episodes)])[:, None]
+    averaged = cross_validate(mean, labels, 2, config)
+    assert each["accuracy"] >= 0.95
+    assert averaged["accuracy"] < 0.75  # chance is a half
+    with pytest.raises(ValueError, match="owners"):
+        cross_validate(features, labels, 2, config, owner[:-1])
 
 
 def test_the_classifier_trains_on_one_thread_and_gives_the_rest_back():

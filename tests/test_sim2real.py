@@ -145,8 +145,10 @@ def test_one_lab_with_runs_of_the_policy(tmp_path):
     assert 0 <= learned["estimate"]["accuracy"] <= 1
     # The same episodes scored as if they had stopped after 1 run, then all of them.
     assert [(s["runs"], s["pushes"]) for s in learned["by_runs"]] == [(1, 2), (2, 4)]
-    assert learned["by_runs"][-1]["accuracy"] == learned["estimate"]["accuracy"]
-    assert "| 2 (1 run) |" in (tmp_path / "summary.md").read_text()
+    for kind in ("estimate", "lstm"):
+        assert learned["by_runs"][-1][kind] == learned[kind]["accuracy"]
+    summary = (tmp_path / "summary.md").read_text()
+    assert "| 2 (1 run) |" in summary and "log-probabilities added up" in summary
     assert (tmp_path / "accuracy-by-pushes.png").stat().st_size > 0
     with pytest.raises(ValueError, match="segments"):
         Sim2RealConfig(segments=0)
@@ -162,13 +164,15 @@ def test_one_lab_with_runs_of_the_policy(tmp_path):
 
 def test_the_arms_are_compared_on_the_same_chains(run):
     out, results = run
-    paired = results["paired"]
     learned, random = results["arms"]["learned"], results["arms"]["random"]
     assert learned["ids"] == random["ids"]
     truth = np.array(learned["labels"])
-    right = {arm: np.array(r["estimate"]["predicted"]) == truth for arm, r in
-             results["arms"].items()}  # fmt: skip
-    assert paired["only_learned"] == np.sum(right["learned"] & ~right["random"])
+    for kind in ("estimate", "lstm"):
+        right = {arm: np.array(r[kind]["predicted"]) == truth for arm, r in
+                 results["arms"].items()}  # fmt: skip
+        paired = results["paired"][kind]
+        assert paired["only_learned"] == np.sum(right["learned"] & ~right["random"])
+        assert paired["only_random"] == np.sum(~right["learned"] & right["random"])
     assert "McNemar" in (out / "summary.md").read_text()
 
 

@@ -109,11 +109,11 @@ def cmd_finetune(args: argparse.Namespace) -> int:
     from masspush.evaluate import resolve_model
     from masspush.finetune import (
         ClassifierConfig,
+        classifier_inputs,
         cross_validate,
         finetune_predictor,
         fit_classifier,
         labelled,
-        predictor_features,
         save_classifier,
     )
     from masspush.predictor import load_model
@@ -136,10 +136,11 @@ def cmd_finetune(args: argparse.Namespace) -> int:
         return 0
     labels, classes = labelled(recording)
     config = ClassifierConfig(
-        folds=args.folds, features=args.features, segment=args.segment, seed=args.seed
-    )
-    features = predictor_features(predictor, episodes, config.features, config.segment)
-    scores = cross_validate(features, labels, len(classes), config)
+        folds=args.folds, features=args.features, segment=args.segment, runs=args.runs,
+        seed=args.seed,
+    )  # fmt: skip
+    features, owner = classifier_inputs(predictor, episodes, config)
+    scores = cross_validate(features, labels, len(classes), config, owner)
     print(
         f"{len(labels)} episodes, {len(classes)} classes: {args.folds}-fold cross-validated "
         f"accuracy {100 * scores['accuracy']:.1f} % (chance {100 * scores['chance']:.1f} %)"
@@ -147,9 +148,9 @@ def cmd_finetune(args: argparse.Namespace) -> int:
     print("confusion (rows: truth, columns: predicted), classes in this order:", classes)
     for row in scores["confusion"]:
         print("  " + " ".join(f"{v:4d}" for v in row))
-    model = fit_classifier(features, labels, len(classes), config)
+    model = fit_classifier(features, labels[owner], len(classes), config)
     info = {"setting": setting.name, "predictor": str(path), "predictor_meta": meta,
-            "features": config.features, "segment": config.segment,
+            "features": config.features, "segment": config.segment, "runs": config.runs,
             "episodes": str(args.episodes), "cross_validation": scores}  # fmt: skip
     print(f"saved {save_classifier(args.out, model, classes, config, info)} (trained on all)")
     return 0
@@ -157,19 +158,26 @@ def cmd_finetune(args: argparse.Namespace) -> int:
 
 def cmd_classify(args: argparse.Namespace) -> int:
     """Apply a saved classifier to recorded episodes."""
-    import torch
-
-    from masspush.finetune import load_classifier, predictor_features
+    from masspush.finetune import (
+        ClassifierConfig,
+        classifier_inputs,
+        episode_log_probs,
+        load_classifier,
+    )
     from masspush.predictor import load_model
     from masspush.recording import read_recording
 
     model, classes, meta = load_classifier(args.classifier)
     predictor, _ = load_model(meta["predictor"], meta["setting"])
     recording = read_recording(args.episodes)
-    kind = meta.get("features", "estimate")
-    features = predictor_features(predictor, recording.to_episodes(), kind, meta.get("segment", 0))
-    with torch.no_grad():
-        probs = torch.softmax(model(torch.as_tensor(features)), dim=1).numpy()
+    # Classifiers saved before runs could be read one by one averaged them.
+    reading = ClassifierConfig(
+        features=meta.get("features", "estimate"),
+        segment=meta.get("segment", 0),
+        runs=meta.get("runs", "average"),
+    )
+    features, owner = classifier_inputs(predictor, recording.to_episodes(), reading)
+    probs = np.exp(episode_log_probs(model, features, owner, len(recording.episodes)))
     right = 0
     for episode, p in zip(recording.episodes, probs, strict=True):
         guess = classes[int(p.argmax())]
@@ -196,7 +204,7 @@ def cmd_sim2real(args: argparse.Namespace) -> int:
         severity=args.severity,
         lab=args.lab,
         segments=args.segments,
-        classifier=ClassifierConfig(folds=args.folds, seed=args.seed),
+        classifier=ClassifierConfig(folds=args.folds, runs=args.runs, seed=args.seed),
         models={"random": args.random_model, "learned": args.learned_model},
     )
     run_sim2real(config, args.out)
@@ -670,6 +678,14 @@ def _recipe_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ship", action="store_true", help="copy TP and TP+ into the package")
 
 
+def _runs_arg(p: argparse.ArgumentParser, segments_flag: str) -> None:
+    p.add_argument(
+        "--runs", default="each", choices=("each", "average"),
+        help=f"with {segments_flag}: classify each run and add up their log-probabilities "
+        "(each), or classify the runs' averaged features (average)",
+    )  # fmt: skip
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="masspush",
@@ -835,8 +851,9 @@ def build_parser() -> argparse.ArgumentParser:
     ft.add_argument(
         "--segment", type=int, default=0, metavar="P",
         help="the episodes are runs of P pushes each (recorded with --segments): read each run "
-        "on its own and average (default 0: read each episode whole)",
+        "on its own (default 0: read each episode whole)",
     )  # fmt: skip
+    _runs_arg(ft, "--segment")
     ft.add_argument(
         "--features",
         default="estimate",
@@ -881,9 +898,10 @@ def build_parser() -> argparse.ArgumentParser:
     )  # fmt: skip
     s2r.add_argument(
         "--segments", type=int, default=1,
-        help="runs of each policy per episode, on the same chain one after the other; the "
-        "classifier reads their averaged estimate (1: the paper's protocol)",
+        help="runs of each policy per episode, on the same chain one after the other (1: the "
+        "paper's protocol)",
     )  # fmt: skip
+    _runs_arg(s2r, "--segments")
     s2r.add_argument("--random-model", default="rp", help="the random-push arm's model")
     s2r.add_argument("--learned-model", default="tp+", help="the learned arm's model, e.g. tp+dr")
     s2r.set_defaults(func=cmd_sim2real)

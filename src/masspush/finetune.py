@@ -7,9 +7,11 @@ last push) [paper, Sec. 4.3; paper-details.md]. We train the same classifier, by
 the predictor's final estimate (the log of the mass distribution) instead: on 34 simulated
 episodes of three classes, 4-fold cross-validated accuracy was 94 % from the estimate and
 44 % from the 64 LSTM outputs, where a few dozen episodes let the classifier fit the chain's
-pose instead of its masses (`features="lstm"` keeps the paper's choice). `cross_validate`
-reports stratified k-fold accuracy; where the true masses are known, `finetune_predictor`
-fine-tunes the predictor itself.
+pose instead of its masses (`features="lstm"` keeps the paper's choice). Episodes made of
+several runs of a policy (`segment`) give the classifier a sample per run (`runs="each"`),
+and there the LSTM outputs of the learned policy's runs sorted best (docs/results.md,
+"Reading each run on its own"). `cross_validate` reports stratified k-fold accuracy; where
+the true masses are known, `finetune_predictor` fine-tunes the predictor itself.
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ PAPER_CLASSES: dict[str, tuple[float, float]] = {
 """The real experiment's five mass pairs, kg [paper-details.md, "Real robot"]."""
 CLASSIFIER_FORMAT, CLASSIFIER_VERSION = "masspush-classifier", 1
 FEATURE_KINDS = ("estimate", "lstm")
+RUN_READINGS = ("each", "average")
 PER_POSE, PER_PUSH = ("observations", "configs"), ("actions", "executed", "failure")
 """`Episodes` fields with one entry per rest pose (K + 1) and per push (K)."""
 
@@ -61,7 +64,13 @@ class ClassifierConfig:
     segment: int = 0
     """0: the predictor reads each episode whole. P > 0: an episode is consecutive runs of
     P pushes (the policy run again from where it stopped, `masspush.robot.run_segments`);
-    the predictor reads each run on its own and the features are averaged over the runs."""
+    the predictor reads each run on its own (`runs` says how the runs are combined)."""
+    runs: str = "each"
+    """With `segment`: "each": the classifier reads every run on its own (trained on every run
+    of the training episodes) and an episode's class is the one with the highest sum of its
+    runs' log-probabilities, as for independent looks at one object (in a lab the runs'
+    estimates scatter independently: the std of 16 runs' mean is a single run's over 4)
+    [ours]; "average": the classifier reads the features averaged over the runs [ours]."""
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -75,6 +84,8 @@ class ClassifierConfig:
             raise ValueError(f"folds must be >= 2, got {self.folds}")
         if self.segment < 0:
             raise ValueError(f"segment must be >= 0 pushes, got {self.segment}")
+        if self.runs not in RUN_READINGS:
+            raise ValueError(f"runs must be one of {RUN_READINGS}, got {self.runs!r}")
 
 
 class MassClassifier(nn.Module):
@@ -150,8 +161,7 @@ def predictor_features(
     if kind not in FEATURE_KINDS:
         raise ValueError(f"features must be one of {FEATURE_KINDS}, got {kind!r}")
     if segment:
-        parts, owner = segments_of(episodes, segment)
-        out = predictor_features(predictor, parts, kind)
+        out, owner = run_features(predictor, episodes, kind, segment)
         if kind == "estimate":
             out = np.exp(out)
         total = np.zeros((len(episodes), out.shape[1]))
@@ -166,6 +176,38 @@ def predictor_features(
             out = torch.log_softmax(predictor.head(out), dim=-1)
         out = out.numpy()
     return out[np.arange(len(out)), episodes.last_seen()]
+
+
+def run_features(
+    predictor: MassPredictor, episodes: Episodes, kind: str, segment: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each run of `segment` pushes read on its own (`predictor_features` of the run), and the
+    episode each run belongs to."""
+    parts, owner = segments_of(episodes, segment)
+    return predictor_features(predictor, parts, kind), owner
+
+
+def classifier_inputs(
+    predictor: MassPredictor, episodes: Episodes, config: ClassifierConfig
+) -> tuple[np.ndarray, np.ndarray]:
+    """The rows the classifier reads and the episode each belongs to: one row per episode,
+    or with runs read one by one (`ClassifierConfig.runs`), one per run."""
+    if config.segment and config.runs == "each":
+        return run_features(predictor, episodes, config.features, config.segment)
+    features = predictor_features(predictor, episodes, config.features, config.segment)
+    return features, np.arange(len(features))
+
+
+def episode_log_probs(
+    model: MassClassifier, features: np.ndarray, owner: np.ndarray, n_episodes: int
+) -> np.ndarray:
+    """Each episode's class log-probabilities (E, C): the sum of its rows' (runs')
+    log-probabilities, normalised; with one row per episode, the classifier's own."""
+    with torch.no_grad():
+        rows = torch.log_softmax(model(torch.as_tensor(features, dtype=torch.float32)), -1)
+    total = np.zeros((n_episodes, rows.shape[1]))
+    np.add.at(total, owner, rows.numpy())
+    return total - np.logaddexp.reduce(total, axis=1, keepdims=True)
 
 
 def fit_classifier(
@@ -216,10 +258,19 @@ def stratified_folds(labels: np.ndarray, folds: int, seed: int) -> list[np.ndarr
 
 
 def cross_validate(
-    features: np.ndarray, labels: np.ndarray, n_classes: int, config: ClassifierConfig
+    features: np.ndarray,
+    labels: np.ndarray,
+    n_classes: int,
+    config: ClassifierConfig,
+    owner: np.ndarray | None = None,
 ) -> dict[str, Any]:
-    """Stratified k-fold accuracy, the confusion matrix (rows: truth, columns: predicted)
-    and each episode's out-of-fold prediction."""
+    """Stratified k-fold accuracy over episodes, the confusion matrix (rows: truth, columns:
+    predicted) and each episode's out-of-fold prediction. `labels` has one entry per episode;
+    `features` one row per episode, or with `owner` (the episode of each row, from
+    `classifier_inputs`) any number: an episode's rows are all trained on or all tested."""
+    owner = np.arange(len(labels)) if owner is None else np.asarray(owner)
+    if len(owner) != len(features):
+        raise ValueError(f"{len(features)} rows of features but {len(owner)} owners")
     counts = np.bincount(labels, minlength=n_classes)
     if counts.min() < config.folds:
         raise ValueError(
@@ -230,10 +281,10 @@ def cross_validate(
     per_fold = []
     predicted = np.zeros(len(labels), np.int64)
     for test in stratified_folds(labels, config.folds, config.seed):
-        train = np.setdiff1d(np.arange(len(labels)), test)
-        model = fit_classifier(features[train], labels[train], n_classes, config)
-        with torch.no_grad():
-            guess = model(torch.as_tensor(features[test], dtype=torch.float32)).argmax(1).numpy()
+        train = ~np.isin(owner, test)
+        model = fit_classifier(features[train], labels[owner[train]], n_classes, config)
+        log_probs = episode_log_probs(model, features[~train], owner[~train], len(labels))
+        guess = log_probs[test].argmax(1)
         np.add.at(confusion, (labels[test], guess), 1)
         predicted[test] = guess
         per_fold.append(float(np.mean(guess == labels[test])))

@@ -22,8 +22,10 @@ import numpy as np
 from tqdm import tqdm
 
 from masspush.finetune import (
+    FEATURE_KINDS,
     PAPER_CLASSES,
     ClassifierConfig,
+    classifier_inputs,
     cross_validate,
     first_pushes,
     labelled,
@@ -198,31 +200,28 @@ def score_arm(config: Sim2RealConfig, arm: str, path: Path) -> dict[str, Any]:
         "labels": labels.tolist(),
     }
     segment = 0 if config.segments == 1 else get_setting(config.setting).env_config().pushes
-    configs = {
-        kind: replace(config.classifier, features=kind, segment=segment)
-        for kind in ("estimate", "lstm")
-    }
-    features = {
-        kind: predictor_features(predictor, episodes, kind, cfg.segment)
-        for kind, cfg in configs.items()
-    }
-    for kind, values in features.items():
-        scores[kind] = cross_validate(values, labels, len(classes), configs[kind])
+
+    def score(episodes, kind: str) -> dict[str, Any]:
+        cfg = replace(config.classifier, features=kind, segment=segment)
+        features, owner = classifier_inputs(predictor, episodes, cfg)
+        return cross_validate(features, labels, len(classes), cfg, owner)
+
+    for kind in FEATURE_KINDS:
+        scores[kind] = score(episodes, kind)
     # Without any fine-tuning: how far the simulation-trained estimate is from the truth.
-    estimate = np.exp(features["estimate"])
+    estimate = np.exp(predictor_features(predictor, episodes, "estimate", segment))
     scores["percentage_error"] = percentage_error(estimate, episodes.mass_distribution)
     if config.segments > 1:
-        # What a lab that stopped after fewer runs would have got, from the same episodes.
-        # All runs were scored above.
-        accuracy = {config.segments: scores["estimate"]["accuracy"]}
-        for runs in run_counts(config.segments)[:-1]:
-            shorter = predictor_features(
-                predictor, first_pushes(episodes, runs * segment), "estimate", segment
-            )
-            cv = cross_validate(shorter, labels, len(classes), configs["estimate"])
-            accuracy[runs] = cv["accuracy"]
+        # What a lab that stopped after fewer runs would have got, from the same episodes
+        # (all runs were scored above).
         scores["by_runs"] = [
-            {"runs": runs, "pushes": runs * segment, "accuracy": accuracy[runs]}
+            {"runs": runs, "pushes": runs * segment}
+            | {
+                kind: scores[kind]["accuracy"]
+                if runs == config.segments
+                else score(first_pushes(episodes, runs * segment), kind)["accuracy"]
+                for kind in FEATURE_KINDS
+            }
             for runs in run_counts(config.segments)
         ]
     return scores
@@ -247,11 +246,14 @@ def run_sim2real(
         results["arms"][arm] = {**collected, **score_arm(config, arm, path)}
     random, learned = results["arms"]["random"], results["arms"]["learned"]
     if random["ids"] == learned["ids"]:  # the same chains, so a paired comparison
-        results["paired"] = paired_test(
-            np.array(learned["labels"]),
-            np.array(learned["estimate"]["predicted"]),
-            np.array(random["estimate"]["predicted"]),
-        )
+        results["paired"] = {
+            kind: paired_test(
+                np.array(learned["labels"]),
+                np.array(learned[kind]["predicted"]),
+                np.array(random[kind]["predicted"]),
+            )
+            for kind in FEATURE_KINDS
+        }
     (out / "summary.json").write_text(json.dumps(results, indent=2) + "\n")
     (out / "summary.md").write_text(summary_markdown(results))
     if config.segments > 1:
@@ -274,39 +276,45 @@ def paired_test(truth: np.ndarray, learned: np.ndarray, random: np.ndarray) -> d
     }
 
 
+FEATURE_NAMES = {"estimate": "estimate features", "lstm": "LSTM features (paper's)"}
+
+
 def plot_accuracy_by_pushes(runs: dict[str, dict[str, Any]], path: str | Path) -> Path:
     """Accuracy against pushes per episode for each arm, from `sim2real` results with
-    `segments` > 1: one thin line per named result (e.g. per lab), and with several of
-    them their mean in bold; the paper's real-robot accuracies dashed."""
+    `segments` > 1, a panel per kind of feature: one thin line per named result (e.g. per
+    lab), and with several of them their mean in bold; the paper's real-robot accuracies
+    dashed."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    for arm, colour in zip(ARMS, ("tab:grey", "tab:blue"), strict=True):
-        curves = [r["arms"][arm]["by_runs"] for r in runs.values()]
-        pushes = [step["pushes"] for step in curves[0]]
-        if any([step["pushes"] for step in c] != pushes for c in curves):
-            raise ValueError("the results were not run with the same segments and setting")
-        acc = 100 * np.array([[step["accuracy"] for step in c] for c in curves])
-        single = len(runs) == 1
-        for name, row in zip(runs, acc, strict=True):
-            label = f"{arm} {name}".strip() if single else None
-            ax.plot(pushes, row, color=colour, lw=2 if single else 1, alpha=0.8, marker="o",
-                    ms=3, label=label)  # fmt: skip
-        if not single:
-            ax.plot(pushes, acc.mean(0), color=colour, lw=3, marker="o",
-                    label=f"{arm}, mean of {len(runs)}")  # fmt: skip
-        ax.axhline(PAPER_ACCURACY[arm], color=colour, ls="--", lw=1,
-                   label=f"paper, {arm} (real UR10, 2 pushes)")  # fmt: skip
-    ax.axhline(90, color="tab:green", ls=":", lw=1, label="goal: 90 %")
-    ax.set_xscale("log", base=2)
-    ax.set_xticks(pushes, [str(p) for p in pushes])
-    ax.set_xlabel("pushes per episode")
-    ax.set_ylabel("classifier accuracy, % (chance 20 %)")
-    ax.set_ylim(0, 100)
-    ax.legend(fontsize=8, loc="lower right")
+    single = len(runs) == 1
+    fig, axes = plt.subplots(1, len(FEATURE_KINDS), figsize=(12, 4.5), sharey=True)
+    for ax, kind in zip(axes, FEATURE_KINDS, strict=True):
+        for arm, colour in zip(ARMS, ("tab:grey", "tab:blue"), strict=True):
+            curves = [r["arms"][arm]["by_runs"] for r in runs.values()]
+            pushes = [step["pushes"] for step in curves[0]]
+            if any([step["pushes"] for step in c] != pushes for c in curves):
+                raise ValueError("the results were not run with the same segments and setting")
+            acc = 100 * np.array([[step[kind] for step in c] for c in curves])
+            for name, row in zip(runs, acc, strict=True):
+                label = f"{arm} {name}".strip() if single else None
+                ax.plot(pushes, row, color=colour, lw=2 if single else 1, alpha=0.8,
+                        marker="o", ms=3, label=label)  # fmt: skip
+            if not single:
+                ax.plot(pushes, acc.mean(0), color=colour, lw=3, marker="o",
+                        label=f"{arm}, mean of {len(runs)}")  # fmt: skip
+            ax.axhline(PAPER_ACCURACY[arm], color=colour, ls="--", lw=1,
+                       label=f"paper, {arm} (real UR10, 2 pushes)")  # fmt: skip
+        ax.axhline(90, color="tab:green", ls=":", lw=1, label="goal: 90 %")
+        ax.set_xscale("log", base=2)
+        ax.set_xticks(pushes, [str(p) for p in pushes])
+        ax.set_xlabel("pushes per episode")
+        ax.set_title(FEATURE_NAMES[kind])
+        ax.set_ylim(0, 100)
+    axes[0].set_ylabel("classifier accuracy, % (chance 20 %)")
+    axes[-1].legend(fontsize=8, loc="lower right")
     fig.tight_layout()
     path = Path(path)
     fig.savefig(path, dpi=120)
@@ -315,7 +323,8 @@ def plot_accuracy_by_pushes(runs: dict[str, dict[str, Any]], path: str | Path) -
 
 
 def summary_markdown(results: dict[str, Any]) -> str:
-    """The accuracy table (ours beside the paper's) and each arm's confusion matrix."""
+    """The accuracy table (ours beside the paper's) and each arm's confusion matrices."""
+    config = results["config"]
     lines = [
         "| policy | model | accuracy, estimate features | accuracy, LSTM features (paper's) "
         "| paper (real UR10) | chance | predictor error, no fine-tuning | failed pushes |",
@@ -323,35 +332,41 @@ def summary_markdown(results: dict[str, Any]) -> str:
     ]
     for arm, r in results["arms"].items():
         lines.append(
-            f"| {arm} | {r['model']} | **{100 * r['estimate']['accuracy']:.1f} %** "
+            f"| {arm} | {r['model']} | {100 * r['estimate']['accuracy']:.1f} % "
             f"| {100 * r['lstm']['accuracy']:.1f} % | {PAPER_ACCURACY[arm]:.1f} % "
             f"| {100 * r['estimate']['chance']:.0f} % | {r['percentage_error']:.2f} "
             f"| {sum(r.get('failed_pushes', {}).values())} |"
         )
-    if "paired" in results:
-        p = results["paired"]
-        lines += ["", f"Paired (the same chains): {p['only_learned']} episodes only the learned "
-                  f"policy's got right, {p['only_random']} only the random pushes'; exact "
-                  f"McNemar p = {p['p_value']:.2g}."]  # fmt: skip
+    if config["segments"] > 1:
+        reading = {"each": "each run classified on its own, an episode's runs' log-probabilities "
+                   "added up", "average": "the runs' features averaged"}  # fmt: skip
+        lines += ["", f"{config['segments']} runs of the policy per episode; "
+                  f"{reading[config['classifier']['runs']]}."]  # fmt: skip
+    for kind, p in results.get("paired", {}).items():
+        lines += ["", f"Paired (the same chains), {FEATURE_NAMES[kind]}: {p['only_learned']} "
+                  f"episodes only the learned policy's got right, {p['only_random']} only the "
+                  f"random pushes'; exact McNemar p = {p['p_value']:.2g}."]  # fmt: skip
     by_runs = {arm: r["by_runs"] for arm, r in results["arms"].items() if "by_runs" in r}
     if by_runs:
+        columns = [(arm, kind) for arm in by_runs for kind in FEATURE_KINDS]
         steps = next(iter(by_runs.values()))
-        lines += ["", "Accuracy (estimate features) had each episode stopped after fewer runs "
-                  "of the policy:", "",
-                  "| pushes per episode | " + " | ".join(by_runs) + " |",
-                  "|---" * (len(by_runs) + 1) + "|"]  # fmt: skip
+        lines += ["", "Accuracy had each episode stopped after fewer runs of the policy:", "",
+                  "| pushes per episode | "
+                  + " | ".join(f"{arm}, {FEATURE_NAMES[kind]}" for arm, kind in columns) + " |",
+                  "|---" * (len(columns) + 1) + "|"]  # fmt: skip
         for i, step in enumerate(steps):
             lines.append(
                 f"| {step['pushes']} ({step['runs']} run{'s' * (step['runs'] > 1)}) | "
-                + " | ".join(f"{100 * r[i]['accuracy']:.1f} %" for r in by_runs.values())
+                + " | ".join(f"{100 * by_runs[arm][i][kind]:.1f} %" for arm, kind in columns)
                 + " |"
             )
     for arm, r in results["arms"].items():
         classes = r["classes"]
-        lines += ["", f"Confusion, {arm} policy, estimate features (rows: truth, columns: "
-                  "predicted; masses in kg):", "",
-                  "| truth \\ predicted | " + " | ".join(classes) + " |",
-                  "|---" * (len(classes) + 1) + "|"]  # fmt: skip
-        for label, row in zip(classes, r["estimate"]["confusion"], strict=True):
-            lines.append(f"| {label} | " + " | ".join(str(v) for v in row) + " |")
+        for kind in FEATURE_KINDS:
+            lines += ["", f"Confusion, {arm} policy, {FEATURE_NAMES[kind]} (rows: truth, "
+                      "columns: predicted; masses in kg):", "",
+                      "| truth \\ predicted | " + " | ".join(classes) + " |",
+                      "|---" * (len(classes) + 1) + "|"]  # fmt: skip
+            for label, row in zip(classes, r[kind]["confusion"], strict=True):
+                lines.append(f"| {label} | " + " | ".join(str(v) for v in row) + " |")
     return "\n".join(lines) + "\n"
