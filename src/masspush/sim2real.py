@@ -7,7 +7,8 @@ features is then cross-validated on each recording, as the paper did with its UR
 episodes [paper-details.md, "Real robot"]. Recordings are kept, so a rerun only
 re-scores; `masspush finetune` on them gives the same accuracies. `lab` keeps one lab's
 setup for every episode (`target_world.Lab`); `segments` runs each policy several times per
-episode and has the classifier read the runs' averaged estimate.
+episode, and the classifier reads the runs as `ClassifierConfig.runs` says (by default each
+on its own, an episode's runs' log-probabilities added up).
 """
 
 from __future__ import annotations
@@ -61,8 +62,8 @@ class Sim2RealConfig:
     object its own (`target_world.Lab`), as in a real lab; only with world "target"."""
     segments: int = 1
     """Each episode runs the policy this many times in a row on the same chain, each run the
-    setting's pushes (`masspush.robot.run_segments`); the classifier reads the runs'
-    averaged estimate. 1: the paper's protocol."""
+    setting's pushes (`masspush.robot.run_segments`); the classifier reads the runs as
+    `classifier.runs` says. 1: the paper's protocol."""
     classifier: ClassifierConfig = field(default_factory=ClassifierConfig)
     models: dict[str, str] = field(default_factory=lambda: dict(ARMS))
     """Each arm's model (shipped name or path): its policy pushes, its predictor's
