@@ -31,16 +31,17 @@ from statistics import NormalDist
 
 import numpy as np
 
-from masspush import bayes
-from masspush.bayes import UnexplainedObservationWarning, config_difference, default_config
+from masspush.bayes import filter as bayes
+from masspush.bayes.filter import UnexplainedObservationWarning, config_difference, default_config
 from masspush.cli import bayes_options
 from masspush.settings import get_setting
 
 
 def on_pushes(args: argparse.Namespace) -> None:
-    from masspush.evaluate import model_and_policy
     from masspush.metrics import percentage_error
-    from masspush.robot import SimRobot, run_estimation
+    from masspush.models import model_and_policy
+    from masspush.real.backends import SimRobot
+    from masspush.real.robot import run_estimation
 
     setting = get_setting(args.setting)
     predictor, _, policy = model_and_policy(args.model, setting.name)
@@ -137,7 +138,7 @@ def micro_state(args: argparse.Namespace) -> None:
     import mujoco
 
     from masspush.env import ChainEnv
-    from masspush.simulate import ChainSim
+    from masspush.sim.simulate import ChainSim
 
     setting = get_setting(args.setting)
     if setting.pusher != "stiff":

@@ -17,11 +17,11 @@ from dataclasses import replace
 import numpy as np
 from tqdm import tqdm
 
-from masspush.batch import ChainBatch
-from masspush.bayes import ARM_MAX_PUSH, config_difference
-from masspush.chain import ChainParams
+from masspush.bayes.filter import ARM_MAX_PUSH, config_difference
 from masspush.env import ChainEnv
 from masspush.settings import get_setting
+from masspush.sim.batch import ChainBatch
+from masspush.sim.chain import ChainParams
 
 
 def arm_pushes(setting, arm: str, pushes: int, max_push: float, seed: int = 0) -> list[tuple]:

@@ -18,11 +18,11 @@ import argparse
 import mujoco
 import numpy as np
 
-from masspush.arm import ArmPusher
-from masspush.chain import sample_chain
 from masspush.config import PhysicsConfig
-from masspush.pusher import make_pusher
-from masspush.simulate import ChainSim
+from masspush.sim.chain import sample_chain
+from masspush.sim.pushers import make_pusher
+from masspush.sim.pushers.arm import ArmPusher
+from masspush.sim.simulate import ChainSim
 
 ARMATURE = np.array([0.7, 0.7, 0.4, 0.1, 0.1, 0.05])  # kg m^2, geared industrial joints
 

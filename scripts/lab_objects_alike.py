@@ -19,9 +19,9 @@ from unittest import mock
 
 import numpy as np
 
-from masspush.finetune import PAPER_CLASSES
-from masspush.sim2real import ARMS, Sim2RealConfig, record_arm, score_arm
-from masspush.target_world import Lab
+from masspush.real.finetune import PAPER_CLASSES
+from masspush.real.sim2real import ARMS, Sim2RealConfig, record_arm, score_arm
+from masspush.real.target_world import Lab
 
 FIRST_CLASS = next(iter(PAPER_CLASSES.values()))
 LAB_OFFSETS = Lab.com_offsets

@@ -21,12 +21,12 @@ import tempfile
 import numpy as np
 
 from masspush.config import EnvConfig
-from masspush.dataset import collect, load_dataset
+from masspush.data.dataset import collect, load_dataset
+from masspush.data.rollout import EVAL, run_episodes
+from masspush.learn.predictor import load_model, train_predictor
+from masspush.learn.recipe import FINETUNE
 from masspush.metrics import percentage_error
-from masspush.predictor import load_model, train_predictor
-from masspush.rollout import EVAL, run_episodes
 from masspush.settings import get_setting
-from masspush.train import FINETUNE
 
 
 class FixedPolicy:
@@ -44,7 +44,7 @@ class FixedPolicy:
 
 
 def landscape(setting: str, predictor: str, envs: int) -> None:
-    from masspush.vec_env import BatchPushVecEnv
+    from masspush.learn.vec_env import BatchPushVecEnv
 
     spec = get_setting(setting)
     env = BatchPushVecEnv(EnvConfig(physics=spec.physics(), pusher="stiff"), predictor, envs, 3)

@@ -19,17 +19,17 @@ import warnings
 
 import numpy as np
 
-from masspush.bayes import (
+from masspush.bayes.filter import (
     InfoSeekingPolicy,
     UnexplainedObservationWarning,
     filter_for,
     run_bayes_episode,
 )
+from masspush.data.rollout import EVAL, Episodes, episode_seed
 from masspush.env import ChainEnv
+from masspush.learn.uncertainty import LearnedPosterior
 from masspush.metrics import percentage_error
-from masspush.rollout import EVAL, Episodes, episode_seed
 from masspush.settings import get_setting
-from masspush.uncertainty import LearnedPosterior
 
 
 def main() -> None:

@@ -26,8 +26,13 @@ from pathlib import Path
 
 import numpy as np
 
-from masspush.finetune import PAPER_CLASSES, ClassifierConfig, cross_validate, predictor_features
-from masspush.rollout import Episodes, RandomPolicy
+from masspush.data.rollout import Episodes, RandomPolicy
+from masspush.real.finetune import (
+    PAPER_CLASSES,
+    ClassifierConfig,
+    cross_validate,
+    predictor_features,
+)
 
 SETTING = "real-ur10-4push"
 
@@ -79,9 +84,9 @@ def make_policy(design: str):
 def _collect_job(args) -> Episodes:
     import torch
 
-    from masspush.evaluate import resolve_model
-    from masspush.randomise import run_randomised
-    from masspush.target_world import WorldRanges
+    from masspush.models import resolve_model
+    from masspush.real.randomise import run_randomised
+    from masspush.real.target_world import WorldRanges
 
     torch.set_num_threads(1)
     design, indices, base_seed = args
@@ -90,7 +95,7 @@ def _collect_job(args) -> Episodes:
 
 
 def collect(design: str, episodes: int, path: Path, workers: int) -> Episodes:
-    from masspush.dataset import read_shard, write_shard
+    from masspush.data.dataset import read_shard, write_shard
 
     if path.exists():
         return read_shard(path)
@@ -104,8 +109,8 @@ def collect(design: str, episodes: int, path: Path, workers: int) -> Episodes:
 
 def target_episodes(design: str, predictor, per_class: int):
     """The paper's protocol in the target world with this design; seeds as `sim2real`."""
-    from masspush.evaluate import model_and_policy
-    from masspush.sim2real import Sim2RealConfig, record_classes
+    from masspush.models import model_and_policy
+    from masspush.real.sim2real import Sim2RealConfig, record_classes
 
     policy = make_policy(design) or model_and_policy("tp+", SETTING)[2]
     config = Sim2RealConfig(setting=SETTING, episodes_per_class=per_class)
@@ -115,9 +120,9 @@ def target_episodes(design: str, predictor, per_class: int):
 
 
 def probe(design: str, args) -> dict:
+    from masspush.learn.predictor import MassPredictor, train_predictor
+    from masspush.learn.recipe import PREDICTOR
     from masspush.metrics import percentage_error
-    from masspush.predictor import MassPredictor, train_predictor
-    from masspush.train import PREDICTOR
 
     work = Path(args.work) / design
     work.mkdir(parents=True, exist_ok=True)

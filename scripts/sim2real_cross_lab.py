@@ -19,16 +19,16 @@ from pathlib import Path
 
 import numpy as np
 
-from masspush.evaluate import resolve_model
-from masspush.finetune import (
+from masspush.data.recording import read_recording
+from masspush.learn.predictor import load_model
+from masspush.models import resolve_model
+from masspush.real.finetune import (
     ClassifierConfig,
     classifier_inputs,
     episode_log_probs,
     fit_classifier,
     labelled,
 )
-from masspush.predictor import load_model
-from masspush.recording import read_recording
 from masspush.settings import get_setting
 
 

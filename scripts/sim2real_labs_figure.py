@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from masspush.sim2real import (
+from masspush.real.sim2real import (
     ARMS,
     FEATURE_KINDS,
     FEATURE_NAMES,

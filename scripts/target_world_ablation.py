@@ -19,11 +19,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from masspush.evaluate import model_and_policy
-from masspush.finetune import PAPER_CLASSES
-from masspush.robot import run_estimation
+from masspush.models import model_and_policy
+from masspush.real.finetune import PAPER_CLASSES
+from masspush.real.robot import run_estimation
+from masspush.real.target_world import TRAINING_KNOBS, TargetWorld, TargetWorldRobot, scaled_world
 from masspush.settings import get_setting
-from masspush.target_world import TRAINING_KNOBS, TargetWorld, TargetWorldRobot, scaled_world
 
 GROUPS = {
     "none": (),

@@ -4,7 +4,7 @@
     python scripts/target_world_filter.py [--recording results/sim2real-4push/learned.jsonl]
         [--episodes 30] [--cache results/sim2real-4push/learned.filter.json]
 
-The particle filter (`masspush.bayes`, simulating the UR10 in the training world's physics)
+The particle filter (`masspush.bayes.filter`, simulating the UR10 in the training world's physics)
 replays each labelled episode of a `masspush sim2real` recording: the pushes the policy
 made and the poses the target world's tracker reported. Its posterior median after the
 last push is the classifier's feature (its log, as for TP+'s "estimate" features), and the
@@ -25,11 +25,11 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from masspush import bayes
-from masspush.evaluate import resolve_model
-from masspush.finetune import ClassifierConfig, cross_validate, labelled, predictor_features
-from masspush.predictor import load_model
-from masspush.recording import read_recording
+from masspush.bayes import filter as bayes
+from masspush.data.recording import read_recording
+from masspush.learn.predictor import load_model
+from masspush.models import resolve_model
+from masspush.real.finetune import ClassifierConfig, cross_validate, labelled, predictor_features
 from masspush.settings import get_setting
 
 

@@ -13,8 +13,8 @@ pushes could at best, but not what is fixed for the episode. For the three paper
 that are hardest to tell apart it prints the per-class mean +- std of the estimated share
 of link 1 over episodes, averaged over the first 1, 2, 4... segments. Classes 0.05 apart in
 that share need a std of about 0.02 for the classifier to reach 90 %. `--severity` scales
-the target world's differences from training (`masspush.target_world.scaled_world`);
-`--lab` runs every target-world episode in one lab (`masspush.target_world.Lab`), so that
+the target world's differences from training (`masspush.real.target_world.scaled_world`);
+`--lab` runs every target-world episode in one lab (`masspush.real.target_world.Lab`), so that
 only the chain's placement and the noise differ between episodes.
 """
 
@@ -23,11 +23,12 @@ import time
 
 import numpy as np
 
-from masspush.evaluate import model_and_policy
-from masspush.finetune import PAPER_CLASSES, ClassifierConfig, cross_validate
-from masspush.robot import SimRobot, run_segments
+from masspush.models import model_and_policy
+from masspush.real.backends import SimRobot
+from masspush.real.finetune import PAPER_CLASSES, ClassifierConfig, cross_validate
+from masspush.real.robot import run_segments
+from masspush.real.target_world import TargetWorldRobot, scaled_world
 from masspush.settings import get_setting
-from masspush.target_world import TargetWorldRobot, scaled_world
 
 CLASSES = ("0.160-0.160", "0.064-0.192", "0.064-0.256")
 

@@ -18,8 +18,8 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from masspush.sim2real import Sim2RealConfig, record_arm, score_arm
-from masspush.target_world import TRAINING_KNOBS, TargetWorld, scaled_world
+from masspush.real.sim2real import Sim2RealConfig, record_arm, score_arm
+from masspush.real.target_world import TRAINING_KNOBS, TargetWorld, scaled_world
 
 UNSCALED = ("solver", "solver_iterations", "cone")
 """The knobs `scaled_world` cannot move by degrees (the iterations go with the solver)."""

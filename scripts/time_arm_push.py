@@ -16,8 +16,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from masspush.arm_sims import ArmScene
-from masspush.bayes import BayesConfig
+from masspush.bayes.arm_scenes import ArmScene
+from masspush.bayes.filter import BayesConfig
 from masspush.settings import get_setting
 
 

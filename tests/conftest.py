@@ -23,8 +23,8 @@ def rng() -> np.random.Generator:
 def predictor_file(tmp_path_factory):
     """A briefly trained 2link-0.1-1 predictor (stiff pusher), for policy tests."""
     from masspush.config import EnvConfig
-    from masspush.predictor import TrainConfig, train_predictor
-    from masspush.rollout import TRAIN, RandomPolicy, run_batch
+    from masspush.data.rollout import TRAIN, RandomPolicy, run_batch
+    from masspush.learn.predictor import TrainConfig, train_predictor
     from masspush.settings import get_setting
 
     config = EnvConfig(physics=get_setting("2link-0.1-1").physics(), pusher="stiff")

@@ -1,10 +1,10 @@
 import numpy as np
 import pytest
 
-from masspush.actions import action_to_push, check_action, push_geometry
-from masspush.chain import sample_chain
 from masspush.config import PhysicsConfig
-from masspush.simulate import ChainSim
+from masspush.sim.actions import action_to_push, check_action, push_geometry
+from masspush.sim.chain import sample_chain
+from masspush.sim.simulate import ChainSim
 
 L2 = (0.1, 0.14)
 L3 = (0.1, 0.12, 0.14)

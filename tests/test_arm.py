@@ -4,12 +4,12 @@ import mujoco
 import numpy as np
 import pytest
 
-from masspush.arm import ARMS, ArmPusher, tool_rotation
-from masspush.chain import link_poses, sample_chain
 from masspush.config import PhysicsConfig
-from masspush.osc import desired_acceleration, osc_torque, rotation_error
-from masspush.pusher import make_pusher
-from masspush.simulate import ChainSim
+from masspush.sim.chain import link_poses, sample_chain
+from masspush.sim.pushers import make_pusher
+from masspush.sim.pushers.arm import ARMS, ArmPusher, tool_rotation
+from masspush.sim.pushers.osc import desired_acceleration, osc_torque, rotation_error
+from masspush.sim.simulate import ChainSim
 
 STRAIGHT = {"joint_angles": [0.0], "lengths": [0.12, 0.12], "root_pose": [0.0, 0.0, 0.0]}
 ARM_NAMES = sorted(ARMS)

@@ -1,11 +1,11 @@
 import numpy as np
 import pytest
 
-from masspush.arm_sims import ArmScene, ArmSimulator
-from masspush.chain import ChainParams
-from masspush.pusher import make_pusher
+from masspush.bayes.arm_scenes import ArmScene, ArmSimulator
 from masspush.settings import get_setting
-from masspush.simulate import ChainSim
+from masspush.sim.chain import ChainParams
+from masspush.sim.pushers import make_pusher
+from masspush.sim.simulate import ChainSim
 
 PHYSICS = get_setting("2link-0.1-1").physics()
 LENGTHS = (0.12, 0.14)

@@ -1,9 +1,9 @@
 import json
 
-import masspush.baselines as baselines
 import masspush.evaluate as evaluate_module
+import masspush.reports.baselines as baselines
 from masspush.evaluate import evaluate
-from masspush.predictor import TrainConfig
+from masspush.learn.predictor import TrainConfig
 
 
 def test_baselines_recipe_end_to_end_and_shipping(tmp_path, monkeypatch):

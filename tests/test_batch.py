@@ -1,10 +1,10 @@
 import numpy as np
 import pytest
 
-from masspush.batch import ChainBatch
-from masspush.chain import sample_chain
 from masspush.config import PhysicsConfig
-from masspush.simulate import ChainSim
+from masspush.sim.batch import ChainBatch
+from masspush.sim.chain import sample_chain
+from masspush.sim.simulate import ChainSim
 
 
 @pytest.mark.parametrize("n_links", [2, 3])

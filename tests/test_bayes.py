@@ -4,7 +4,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from masspush.bayes import (
+from masspush.bayes.filter import (
     ARM_CONFIG,
     ARM_LIKELIHOOD_POWER,
     ARM_MAX_PUSH,
@@ -142,7 +142,7 @@ def test_where_an_arm_pushes_the_filter_simulates_the_arm_or_its_surrogate():
 
 
 def test_the_arm_filter_weighs_the_true_chain_highest():
-    from masspush.arm_sims import ArmScene
+    from masspush.bayes.arm_scenes import ArmScene
 
     setting = get_setting("2link-0.1-1")
     config = BayesConfig(particles=8, lookahead_particles=4, nthread=1)

@@ -1,10 +1,9 @@
-import masspush.bayes_table as bayes_table_module
-import masspush.evaluate as evaluate_module
-from masspush.bayes_table import bayes_table, filter_settings
+import masspush.reports.bayes_table as bayes_table_module
+from masspush.reports.bayes_table import bayes_table, filter_settings
 
 
 def fake_evaluate(calls):
-    def evaluate(setting, model, episodes, seed=0, per_episode=False):
+    def run_model(setting, model, episodes, seed=0, per_episode=False):
         calls.append((setting, model, episodes))
         result = {"percentage_error": 3.0 if model == "bayes" else 5.0, "coverage": 0.9,
                   "seconds_per_episode": 4.2, "episodes": episodes,
@@ -18,12 +17,12 @@ def fake_evaluate(calls):
             result["per_episode"] = {"index": index, "estimate": estimate, "truth": truth}
         return result
 
-    return evaluate
+    return run_model
 
 
 def test_measurements_are_cached_and_the_table_built_from_them(tmp_path, monkeypatch):
     calls = []
-    monkeypatch.setattr(evaluate_module, "evaluate", fake_evaluate(calls))
+    monkeypatch.setattr(bayes_table_module, "run_model", fake_evaluate(calls))
     text = bayes_table(["2link-1-10"], 7, root=tmp_path, tp_episodes=9)
     assert sorted(calls) == [
         ("2link-1-10", "bayes", 7), ("2link-1-10", "bayes-random", 7),
@@ -60,10 +59,10 @@ def test_a_measurement_from_before_the_arm_model_counts_only_where_it_still_hold
 ):
     import json
 
-    from masspush.bayes_table import ADDED_SETTINGS, measure
+    from masspush.reports.bayes_table import ADDED_SETTINGS, measure
 
     calls = []
-    monkeypatch.setattr(evaluate_module, "evaluate", fake_evaluate(calls))
+    monkeypatch.setattr(bayes_table_module, "run_model", fake_evaluate(calls))
     # The stiff pusher's filter is what it was; where the KR 5 pushes, the filter now
     # simulates it instead of its surrogate.
     for setting, still_holds in (("2link-1-10", True), ("2link-0.1-1", False)):
@@ -82,10 +81,10 @@ def test_a_measurement_from_before_the_arm_model_counts_only_where_it_still_hold
 def test_a_filter_measurement_without_episodes_is_measured_again_for_pairing(tmp_path, monkeypatch):
     import json
 
-    from masspush.bayes_table import measure
+    from masspush.reports.bayes_table import measure
 
     calls = []
-    monkeypatch.setattr(evaluate_module, "evaluate", fake_evaluate(calls))
+    monkeypatch.setattr(bayes_table_module, "run_model", fake_evaluate(calls))
     path = tmp_path / "results" / "bayes" / "2link-1-10-bayes.json"
     path.parent.mkdir(parents=True)
     path.write_text(json.dumps({"requested_episodes": 5, "filter": filter_settings("2link-1-10")}))

@@ -1,4 +1,4 @@
-from masspush.bench import bench_data, bench_ppo, bench_train
+from masspush.reports.bench import bench_data, bench_ppo, bench_train
 
 
 def test_collection_and_training_benchmarks_report_rates():

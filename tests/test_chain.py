@@ -4,9 +4,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from masspush.chain import ChainParams, link_poses, quat_yaw, sample_chain
 from masspush.config import PhysicsConfig
-from masspush.simulate import ChainSim
+from masspush.sim.chain import ChainParams, link_poses, quat_yaw, sample_chain
+from masspush.sim.simulate import ChainSim
 
 
 @pytest.mark.parametrize("n_links", [2, 3, 5])

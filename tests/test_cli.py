@@ -81,7 +81,7 @@ def test_randomise_collects_fine_tunes_and_names_the_result(tmp_path, capsys):
 
 
 def test_randomise_passes_the_policy_training_on(tmp_path, monkeypatch, capsys):
-    import masspush.randomise
+    import masspush.real.randomise
 
     seen = {}
 
@@ -89,7 +89,7 @@ def test_randomise_passes_the_policy_training_on(tmp_path, monkeypatch, capsys):
         seen.update(config=config, out=out)
         return tmp_path / "p.pt"
 
-    monkeypatch.setattr(masspush.randomise, "randomise", fake)
+    monkeypatch.setattr(masspush.real.randomise, "randomise", fake)
     main(["randomise", "--setting", "2link-1-10", "--policy-steps", "500", "--envs", "3"])
     assert (seen["config"].policy_steps, seen["config"].policy_envs) == (500, 3)
     assert seen["config"].shipped_name == "tp+drp"
@@ -105,7 +105,7 @@ def test_run_on_one_lab_of_the_target_world_records_it(tmp_path, capsys):
             "--count", "2", "--lab", "1", "--record", str(out)]  # fmt: skip
     assert main(args) == 0
     assert capsys.readouterr().out.count("estimate ") >= 2
-    from masspush.recording import read_recording
+    from masspush.data.recording import read_recording
 
     episodes = read_recording(out).episodes
     assert len(episodes) == 2 and episodes[0]["lengths"] == episodes[1]["lengths"]

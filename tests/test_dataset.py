@@ -6,7 +6,7 @@ import time
 import numpy as np
 import pytest
 
-from masspush.dataset import DatasetError, collect, load_dataset, shard_path
+from masspush.data.dataset import DatasetError, collect, load_dataset, shard_path
 from masspush.settings import get_setting
 
 SETTING = get_setting("2link-0.1-1")

@@ -7,9 +7,10 @@ import pytest
 
 import masspush.evaluate as evaluate_module
 from masspush.config import EnvConfig
-from masspush.evaluate import SHIPPED_DIR, evaluate, resolve_model
-from masspush.predictor import MassPredictor, load_model, save_model, step_inputs
-from masspush.rollout import TRAIN, RandomPolicy, run_batch
+from masspush.data.rollout import TRAIN, RandomPolicy, run_batch
+from masspush.evaluate import evaluate
+from masspush.learn.predictor import MassPredictor, load_model, save_model, step_inputs
+from masspush.models import SHIPPED_DIR, resolve_model
 from masspush.settings import get_setting
 
 KEYS = {"percentage_error", "relative_error", "mae", "constant_floor", "episodes", "failures"}
@@ -77,9 +78,9 @@ def test_unknown_models_are_clear_errors(model_file, tmp_path, monkeypatch):
 
 
 def test_every_shipped_model_loads_by_name_with_its_policy():
-    from masspush.evaluate import model_policy
+    from masspush.learn.policy import model_policy
+    from masspush.learn.uncertainty import load_head
     from masspush.settings import KNOWN_SETTINGS, SETTINGS
-    from masspush.uncertainty import load_head
 
     for name in SETTINGS:  # the paper's six: all four models of Table 1
         for model in ("rp", "rp+", "tp", "tp+"):
@@ -97,7 +98,7 @@ def test_every_shipped_model_loads_by_name_with_its_policy():
 
 
 def test_per_episode_records_pair_a_learned_model_with_the_filter(model_file):
-    from masspush.bayes import BayesConfig, evaluate_bayes
+    from masspush.bayes.filter import BayesConfig, evaluate_bayes
     from masspush.metrics import paired_percentage_errors
 
     learned = evaluate("2link-0.1-1", model_file, episodes=4, per_episode=True)

@@ -2,8 +2,12 @@ import numpy as np
 import pytest
 
 from masspush.cli import main
-from masspush.evaluate import resolve_model
-from masspush.finetune import (
+from masspush.data.recording import Recording, read_recording, write_recording
+from masspush.data.rollout import RandomPolicy
+from masspush.learn.predictor import load_model
+from masspush.models import resolve_model
+from masspush.real.backends import SimRobot
+from masspush.real.finetune import (
     ClassifierConfig,
     classifier_inputs,
     cross_validate,
@@ -14,10 +18,7 @@ from masspush.finetune import (
     predictor_features,
     stratified_folds,
 )
-from masspush.predictor import load_model
-from masspush.recording import Recording, read_recording, write_recording
-from masspush.robot import SimRobot, run_estimation
-from masspush.rollout import RandomPolicy
+from masspush.real.robot import run_estimation
 
 SETTING = "2link-1-10"
 CLASSES = {"light-heavy": (2.0, 8.0), "even": (5.0, 5.0), "heavy-light": (8.0, 2.0)}
@@ -89,8 +90,8 @@ def test_folds_are_stratified_and_too_few_episodes_are_refused():
 def segmented_recording(path, segments: int = 3, episodes: int = 4):
     """Episodes of `segments` runs of the random policy (2 pushes each) in which no push
     failed, with what each run estimated as it went."""
-    from masspush.robot import run_segments
-    from masspush.target_world import TargetWorldRobot
+    from masspush.real.robot import run_segments
+    from masspush.real.target_world import TargetWorldRobot
 
     predictor = load_model(resolve_model("rp+", SETTING), SETTING)[0]
     # The target world, unlike the training world's environment, has no last push.
@@ -142,7 +143,7 @@ def test_an_unfinished_run_counts_with_the_pushes_it_saw(tmp_path):
     features = predictor_features(predictor, episodes, "estimate", segment=2)
     first_run = predictor_features(predictor, episodes.select(np.array([True, False])),
                                    "estimate")  # fmt: skip
-    from masspush.finetune import segments_of
+    from masspush.real.finetune import segments_of
 
     parts, owner = segments_of(episodes, 2)
     assert len(parts) == 5 and parts.actions.shape[1] == 2
@@ -169,7 +170,7 @@ def test_finetune_and_classify_read_runs_as_recorded(tmp_path, capsys):
 def test_runs_read_one_by_one_are_classified_by_their_summed_log_probabilities(tmp_path):
     import torch
 
-    from masspush.finetune import MassClassifier
+    from masspush.real.finetune import MassClassifier
 
     predictor, runs = segmented_recording(tmp_path / "runs.jsonl")
     episodes = read_recording(tmp_path / "runs.jsonl").to_episodes()
@@ -197,7 +198,7 @@ def test_reading_runs_one_by_one_keeps_what_averaging_loses(monkeypatch):
     """Two classes whose episodes have the same mean: one's runs land at +1 or -1, half of
     each, the other's near 0. Averaged the classes overlap; read run by run they do not.
     An episode's runs are never split between training and test."""
-    import masspush.finetune as finetune
+    import masspush.real.finetune as finetune
 
     rng = np.random.default_rng(0)
     episodes, runs = 40, 8
@@ -232,7 +233,7 @@ def test_reading_runs_one_by_one_keeps_what_averaging_loses(monkeypatch):
 def test_the_classifier_trains_on_one_thread_and_gives_the_rest_back():
     import torch
 
-    from masspush.finetune import one_thread
+    from masspush.real.finetune import one_thread
 
     before = torch.get_num_threads()
     with one_thread():

@@ -3,7 +3,14 @@ import math
 import numpy as np
 import pytest
 
-from masspush.osc import KD, KP, desired_acceleration, osc_torque, rotation_error, task_inertia
+from masspush.sim.pushers.osc import (
+    KD,
+    KP,
+    desired_acceleration,
+    osc_torque,
+    rotation_error,
+    task_inertia,
+)
 
 
 def rot(axis, angle):
@@ -48,7 +55,7 @@ def test_task_inertia_and_torque():
 
 
 def test_scaling_to_limits_keeps_direction_and_respects_every_limit():
-    from masspush.osc import scale_to_limits
+    from masspush.sim.pushers.osc import scale_to_limits
 
     tau = np.array([300.0, -50.0, 10.0])
     headroom = np.array([150.0, 100.0, 100.0])

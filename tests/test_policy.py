@@ -5,7 +5,8 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 from masspush.config import EnvConfig
-from masspush.policy import (
+from masspush.data.rollout import TRAIN, run_batch, run_env, run_episodes
+from masspush.learn.policy import (
     LearnedPolicy,
     PolicyConfig,
     PushPolicyEnv,
@@ -15,7 +16,6 @@ from masspush.policy import (
     strip_policy,
     train_policy,
 )
-from masspush.rollout import TRAIN, run_batch, run_env, run_episodes
 from masspush.settings import get_setting
 
 CONFIG = EnvConfig(physics=get_setting("2link-0.1-1").physics(), pusher="stiff")
@@ -115,7 +115,7 @@ def test_an_untrained_policy_starts_at_the_initial_action(algo, predictor_file, 
 
 
 def test_the_policy_environment_pushes_in_another_world(predictor_file):
-    from masspush.target_world import TargetWorld
+    from masspush.real.target_world import TargetWorld
 
     setting = get_setting("2link-0.1-1")
     config = replace(CONFIG, pushes=2)

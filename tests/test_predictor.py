@@ -5,8 +5,8 @@ import pytest
 import torch
 
 from masspush.config import EnvConfig
-from masspush.metrics import all_metrics
-from masspush.predictor import (
+from masspush.data.rollout import EVAL, TRAIN, RandomPolicy, run_batch
+from masspush.learn.predictor import (
     MassPredictor,
     ModelMismatchError,
     TrainConfig,
@@ -15,7 +15,7 @@ from masspush.predictor import (
     step_inputs,
     train_predictor,
 )
-from masspush.rollout import EVAL, TRAIN, RandomPolicy, run_batch
+from masspush.metrics import all_metrics
 from masspush.settings import get_setting
 
 SETTING = get_setting("2link-0.1-1")
@@ -86,7 +86,7 @@ def test_training_resumes_exactly_where_it_stopped(episodes, tmp_path):
 
 def _run_until(episodes, run_dir, config, stop_step):
     """Train with `config` but stop (as if killed) right after the checkpoint at stop_step."""
-    import masspush.predictor as predictor
+    import masspush.learn.predictor as predictor
 
     class Stop(Exception):
         pass

@@ -4,9 +4,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from masspush.dataset import shard_path
-from masspush.randomise import RandomiseConfig, collect_randomised, randomise, run_randomised
-from masspush.target_world import TargetWorld, TargetWorldRobot, WorldRanges
+from masspush.data.dataset import shard_path
+from masspush.real.randomise import RandomiseConfig, collect_randomised, randomise, run_randomised
+from masspush.real.target_world import TargetWorld, TargetWorldRobot, WorldRanges
 
 SETTING = "2link-1-10"  # the stiff pusher keeps these tests fast
 TINY = RandomiseConfig(setting=SETTING, episodes=4, shard_size=2, steps=4)
@@ -53,7 +53,7 @@ def test_the_robot_draws_a_new_world_for_each_episode():
 
 
 def test_episodes_are_what_the_robot_saw_and_follow_their_index():
-    from masspush.evaluate import resolve_model
+    from masspush.models import resolve_model
 
     model = resolve_model("tp+", SETTING)
     eps = run_randomised(SETTING, model, WorldRanges(), np.array([3, 4]), 11)
@@ -81,7 +81,7 @@ def test_a_stopped_collection_resumes_to_the_same_episodes(tmp_path):
 
 
 def test_the_fine_tuned_predictor_keeps_its_policy_and_names_its_worlds(tmp_path):
-    from masspush.predictor import load_model
+    from masspush.learn.predictor import load_model
 
     path = randomise(TINY, tmp_path, workers=1, progress=False)
     _, meta = load_model(path, SETTING)
@@ -103,7 +103,7 @@ def test_the_tuned_predictor_pushes_with_its_policy_where_it_is_and_where_it_shi
     import shutil
 
     from masspush import evaluate
-    from masspush.evaluate import model_and_policy
+    from masspush.models import model_and_policy
 
     shipped = tmp_path / "models" / SETTING
     shipped.mkdir(parents=True)
@@ -137,8 +137,8 @@ def test_episodes_can_come_from_the_target_world_itself_but_do_not_ship(tmp_path
 
 
 def test_the_policy_can_be_trained_on_in_randomised_worlds(tmp_path):
-    from masspush.evaluate import model_and_policy
-    from masspush.randomise import SHIPPED_POLICY_NAME
+    from masspush.models import model_and_policy
+    from masspush.real.randomise import SHIPPED_POLICY_NAME
 
     config = replace(TINY, policy_steps=8, policy_envs=1, policy_rollout=4)
     assert config.shipped_name == SHIPPED_POLICY_NAME

@@ -3,7 +3,7 @@ import json
 import numpy as np
 import pytest
 
-from masspush.recording import (
+from masspush.data.recording import (
     Recording,
     RecordingError,
     check_recording,

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from masspush.cli import main
-from masspush.render import render_episode
+from masspush.reports.render import render_episode
 
 
 @pytest.mark.parametrize(("pusher", "suffix"), [("stiff", ".gif"), ("kuka", ".mp4")])

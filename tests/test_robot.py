@@ -1,18 +1,18 @@
 import numpy as np
 import pytest
 
-from masspush.evaluate import resolve_model
-from masspush.predictor import load_model
-from masspush.recording import Recording, write_recording
-from masspush.robot import (
+from masspush.data.recording import Recording, write_recording
+from masspush.data.rollout import RandomPolicy
+from masspush.learn.predictor import load_model
+from masspush.models import resolve_model
+from masspush.real.backends import (
     RecordedPolicy,
     ReplayMismatchError,
     ReplayRobot,
     SimRobot,
     make_robot,
-    run_estimation,
 )
-from masspush.rollout import RandomPolicy
+from masspush.real.robot import run_estimation
 
 SETTING = "2link-1-10"
 
@@ -73,8 +73,8 @@ def test_simulated_robot_is_deterministic_and_backends_are_checked(predictor):
 
 
 def test_runs_of_the_policy_go_on_from_where_the_last_left_the_chain(predictor):
-    from masspush.robot import run_segments
-    from masspush.target_world import TargetWorldRobot
+    from masspush.real.robot import run_segments
+    from masspush.real.target_world import TargetWorldRobot
 
     one = run_segments(TargetWorldRobot(SETTING, seed=5), predictor, RandomPolicy(), 2, 1, seed=1)
     alone = run_estimation(TargetWorldRobot(SETTING, seed=5), predictor, RandomPolicy(), 2, seed=1)

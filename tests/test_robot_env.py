@@ -2,8 +2,8 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-from masspush.robot_env import RobotEnv
-from masspush.target_world import TargetWorldRobot, WorldRanges
+from masspush.real.robot_env import RobotEnv
+from masspush.real.target_world import TargetWorldRobot, WorldRanges
 
 SETTING = "2link-1-10"  # the stiff pusher keeps these tests fast
 

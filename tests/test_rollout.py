@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from masspush.config import EnvConfig, PhysicsConfig
-from masspush.rollout import (
+from masspush.data.rollout import (
     EVAL,
     NOT_RUN,
     TRAIN,

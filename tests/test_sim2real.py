@@ -3,9 +3,9 @@ import json
 import numpy as np
 import pytest
 
-from masspush.finetune import PAPER_CLASSES, ClassifierConfig
-from masspush.recording import read_recording
-from masspush.sim2real import (
+from masspush.data.recording import read_recording
+from masspush.real.finetune import PAPER_CLASSES, ClassifierConfig
+from masspush.real.sim2real import (
     Sim2RealConfig,
     paired_test,
     plot_accuracy_by_pushes,
@@ -112,9 +112,9 @@ def test_the_target_worlds_differences_can_be_scaled(run, tmp_path):
     assert [e["masses"] for e in scaled.episodes] == [e["masses"] for e in full.episodes]
     assert scaled.episodes[0]["observations"] != full.episodes[0]["observations"]
     # A world given outright is what the robot runs in.
-    from masspush.evaluate import model_and_policy
-    from masspush.sim2real import record_classes
-    from masspush.target_world import scaled_world
+    from masspush.models import model_and_policy
+    from masspush.real.sim2real import record_classes
+    from masspush.real.target_world import scaled_world
 
     predictor, _, policy = model_and_policy("tp+", CONFIG.setting)
     given, _ = record_classes(CONFIG, predictor, policy, "given", progress=False,

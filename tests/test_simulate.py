@@ -5,9 +5,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from masspush.chain import link_poses, sample_chain
 from masspush.config import PhysicsConfig
-from masspush.simulate import NAN, OK, UNSTABLE, ChainSim, classify
+from masspush.sim.chain import link_poses, sample_chain
+from masspush.sim.simulate import NAN, OK, UNSTABLE, ChainSim, classify
 
 G = 9.81
 STRAIGHT = {"joint_angles": [0.0], "lengths": [0.12, 0.12], "root_pose": [0.0, 0.0, 0.0]}

@@ -4,15 +4,15 @@ import mujoco
 import numpy as np
 import pytest
 
-from masspush.chain import wrap_angle
-from masspush.robot import make_robot
-from masspush.target_world import (
+from masspush.real.backends import make_robot
+from masspush.real.target_world import (
     FrictionField,
     TargetWorld,
     TargetWorldRobot,
     WorldRanges,
     scaled_world,
 )
+from masspush.sim.chain import wrap_angle
 
 SETTING = "2link-1-10"  # the stiff pusher keeps these tests fast
 
@@ -190,7 +190,7 @@ def test_the_world_keeps_the_links_meeting_at_a_right_angle():
 
 
 def test_at_severity_0_the_knobs_are_the_training_worlds():
-    from masspush.robot import SimRobot
+    from masspush.real.backends import SimRobot
     from masspush.settings import get_setting
 
     train = SimRobot(SETTING, seed=3)

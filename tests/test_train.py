@@ -6,11 +6,11 @@ import pytest
 from masspush import evaluate as evaluate_module
 from masspush import train as train_module
 from masspush.evaluate import evaluate
-from masspush.policy import PolicyConfig
-from masspush.predictor import ModelMismatchError, load_model
-from masspush.reproduce import collect_rows, table_markdown, write_outputs
+from masspush.learn.policy import PolicyConfig
+from masspush.learn.predictor import ModelMismatchError, load_model
+from masspush.learn.recipe import FINETUNE, PREDICTOR, Recipe, RecipeConfig
+from masspush.reports.reproduce import collect_rows, table_markdown, write_outputs
 from masspush.settings import get_setting
-from masspush.train import FINETUNE, PREDICTOR, Recipe, RecipeConfig
 
 SETTING = get_setting("2link-0.1-1")
 TINY = RecipeConfig(

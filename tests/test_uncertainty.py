@@ -5,11 +5,10 @@ import pytest
 
 from masspush import evaluate as evaluate_module
 from masspush.config import EnvConfig
-from masspush.evaluate import SHIPPED_DIR, evaluate
-from masspush.predictor import load_model
-from masspush.rollout import EVAL, TRAIN, RandomPolicy, run_episodes
-from masspush.settings import get_setting
-from masspush.uncertainty import (
+from masspush.data.rollout import EVAL, TRAIN, RandomPolicy, run_episodes
+from masspush.evaluate import evaluate
+from masspush.learn.predictor import load_model
+from masspush.learn.uncertainty import (
     HeadConfig,
     LearnedPosterior,
     coverage,
@@ -19,6 +18,8 @@ from masspush.uncertainty import (
     load_head,
     save_head,
 )
+from masspush.models import SHIPPED_DIR
+from masspush.settings import get_setting
 
 SETTING = get_setting("2link-1-10")
 

@@ -1,4 +1,4 @@
-from masspush.validate import format_table, validate_physics
+from masspush.sim.convergence import format_table, validate_physics
 
 
 def test_validation_reports_every_comparison_and_slow_pushes_are_not_chaotic():

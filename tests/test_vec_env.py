@@ -2,9 +2,9 @@ import numpy as np
 import pytest
 
 from masspush.config import EnvConfig
-from masspush.policy import history_dim, paper_reward
+from masspush.learn.policy import history_dim, paper_reward
+from masspush.learn.vec_env import BatchPushVecEnv
 from masspush.settings import get_setting
-from masspush.vec_env import BatchPushVecEnv
 
 CONFIG = EnvConfig(physics=get_setting("2link-0.1-1").physics(), pusher="stiff")
 

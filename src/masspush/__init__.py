@@ -14,11 +14,11 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
 
 import gymnasium as gym
 
-from masspush.batch import ChainBatch
-from masspush.chain import ChainParams, sample_chain
 from masspush.config import EnvConfig, PhysicsConfig
 from masspush.env import ENV_ID, ChainEnv
-from masspush.simulate import ChainSim, PushOutcome
+from masspush.sim.batch import ChainBatch
+from masspush.sim.chain import ChainParams, sample_chain
+from masspush.sim.simulate import ChainSim, PushOutcome
 
 __version__ = "0.1.0"
 

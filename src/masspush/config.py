@@ -45,7 +45,7 @@ def _check_non_negative(name: str, value: float) -> None:
 class PhysicsConfig:
     """The simulated world: chain, table, push mapping and simulation numerics.
 
-    Each episode samples one chain from the ranges here (see `masspush.chain.sample_chain`).
+    Each episode samples one chain from the ranges here (see `masspush.sim.chain.sample_chain`).
     Lengths in metres, masses in kilograms, angles in radians, times in seconds.
     """
 
@@ -208,7 +208,7 @@ class EnvConfig:
     action_noise: float = 0.01
     """Std of Gaussian noise added to each action component before execution [paper]."""
     pusher: str = "stiff"
-    """Which pusher delivers the pushes; see `masspush.pusher.PUSHERS`."""
+    """Which pusher delivers the pushes; see `masspush.sim.pushers.PUSHERS`."""
 
     def __post_init__(self) -> None:
         if self.pushes is None:

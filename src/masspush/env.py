@@ -8,11 +8,11 @@ from typing import Any, ClassVar
 import gymnasium as gym
 import numpy as np
 
-from masspush.actions import check_action
-from masspush.chain import ChainParams, sample_chain, wrap_angle
 from masspush.config import EnvConfig, PhysicsConfig
-from masspush.pusher import make_pusher
-from masspush.simulate import ChainSim, PushOutcome
+from masspush.sim.actions import check_action
+from masspush.sim.chain import ChainParams, sample_chain, wrap_angle
+from masspush.sim.pushers import make_pusher
+from masspush.sim.simulate import ChainSim, PushOutcome
 
 ENV_ID = "masspush/Chain-v0"
 
@@ -20,7 +20,7 @@ ENV_ID = "masspush/Chain-v0"
 def noisy_observation(config: np.ndarray, rng: np.random.Generator, sigma: float) -> np.ndarray:
     """A configuration as sensed: Gaussian noise on every component, yaw wrapped again.
 
-    The one place sensing noise is drawn: the batch engine (`masspush.rollout`) calls it too,
+    The one place sensing noise is drawn: the batch engine (`masspush.data.rollout`) calls it too,
     so both draw the same numbers from the same generator."""
     noisy = config + rng.normal(0.0, sigma, size=config.shape)
     noisy[2] = wrap_angle(noisy[2])
@@ -68,7 +68,7 @@ class ChainEnv(gym.Env):
 
     ## Rewards
     0.0 on every step. The paper's reward comes from a trained predictor:
-    `masspush.policy.PushPolicyEnv` wraps this environment with it. Everything a reward
+    `masspush.learn.policy.PushPolicyEnv` wraps this environment with it. Everything a reward
     needs is in `info`.
 
     ## Starting state

@@ -1,129 +1,136 @@
-"""The one evaluation path: fresh simulated episodes, a model's estimates, every metric.
+"""The one evaluation path: fresh simulated episodes, any estimator's estimates, every metric.
 
-Episodes are drawn from the EVAL seed stream (`masspush.rollout`), which never meets the
-TRAIN stream that datasets are collected from, so evaluation never reuses a training seed.
+An `Estimator` is anything that pushes chains and turns what it saw into estimates of their
+mass distributions: a trained predictor with its pushing policy
+(`masspush.learn.estimator.PredictorEstimator`), the particle filter
+(`masspush.bayes.estimator.BayesEstimator`), or your own. `evaluate` gives it the episodes,
+scores what it returns and hands back one typed `EvalResult`, the same for all of them.
+`masspush.estimators.load_estimator` makes one from a name or a model file.
+
+Episodes are drawn from the EVAL seed stream (`masspush.data.rollout`), which never meets
+the TRAIN stream that datasets are collected from, so evaluation never reuses a training seed.
 """
 
 from __future__ import annotations
 
-import os
-from pathlib import Path
-from typing import Any
+from dataclasses import dataclass, field
+from typing import Any, Protocol
 
 import numpy as np
 
+from masspush.config import EnvConfig
 from masspush.metrics import all_metrics, percentage_error
-from masspush.predictor import load_model
-from masspush.rollout import EVAL, POLICIES, run_episodes
-from masspush.settings import Setting, get_setting
-
-SHIPPED_DIR = Path(__file__).parent / "models"
-"""Trained models shipped with the package: models/<setting>/<name>.pt."""
-SHIPPED_NAMES = ("rp", "rp+", "tp", "tp+", "tp+dr")
+from masspush.settings import Setting
 
 
-def resolve_model(model: str | os.PathLike, setting: str) -> Path:
-    """A shipped model's file for `setting` (by name: rp, rp+, tp, tp+), or a path."""
-    if str(model) in SHIPPED_NAMES:
-        path = SHIPPED_DIR / setting / f"{model}.pt"
-        if not path.exists():
-            have = sorted(p.stem for p in (SHIPPED_DIR / setting).glob("*.pt"))
-            raise ValueError(
-                f"no shipped {model!r} model for setting {setting!r} yet"
-                + (f" (shipped for it: {have})" if have else "")
-            )
-        return path
-    path = Path(model)
-    if not path.exists():
-        raise ValueError(f"no model file at {path} (shipped names: {list(SHIPPED_NAMES)})")
-    return path
+@dataclass
+class EstimatorRun:
+    """What an estimator made of a set of evaluation episodes."""
+
+    index: np.ndarray
+    """(m,) the scored episodes' indices in the evaluation stream (failed ones left out)."""
+    estimates: np.ndarray
+    """(m, K, n) the estimated mass distribution after each push."""
+    truth: np.ndarray
+    """(m, n) the true mass distributions."""
+    failures: int
+    """Episodes that failed (a push threw the chain, ...) and are not scored."""
+    extra: dict[str, Any] = field(default_factory=dict)
+    """What this kind of estimator reports besides (interval coverage, timings, ...)."""
 
 
-def model_policy(meta: dict[str, Any], model_file: str | os.PathLike):
-    """The pushing policy a predictor was trained with: random, or the learned policy whose
-    file its metadata names (relative to the model file), acting deterministically."""
-    name = meta.get("policy", "random")
-    if name == "learned":
-        from masspush.policy import LearnedPolicy
+class Estimator(Protocol):
+    """Pushes fresh chains and estimates their mass distributions."""
 
-        policy_file = Path(model_file).parent / meta["policy_file"]
-        if not policy_file.exists():
-            raise ValueError(f"{model_file} needs its policy file {policy_file}, which is missing")
-        return LearnedPolicy(policy_file, meta["policy_algo"], deterministic=True)
-    if name not in POLICIES:
-        raise ValueError(f"{model_file} names an unknown policy {name!r}")
-    return POLICIES[name]()
+    name: str
+    """How results name it: a shipped model's name, a model file, "bayes"."""
+    policy: str
+    """Which pushes it makes ("random", "learned:...", "information-seeking")."""
+    pusher: str
+    """The pusher that delivers its pushes (a name in `masspush.sim.pushers.PUSHERS`)."""
+    model_file: str | None
+    """The file it was loaded from, where there is one."""
+
+    def run(
+        self, env_config: EnvConfig, indices: np.ndarray, seed: int, workers: int | None
+    ) -> EstimatorRun:
+        """Episodes `indices` of the EVAL stream of base seed `seed`, in `env_config`."""
 
 
-def model_and_policy(model: str | os.PathLike, setting: str):
-    """A model (shipped name or path) for `setting`: its predictor, metadata and the
-    policy it was trained with (`model_policy`)."""
-    path = resolve_model(model, setting)
-    predictor, meta = load_model(path, setting)
-    return predictor, meta, model_policy(meta, path)
+@dataclass
+class EvalResult:
+    """An estimator's score on fresh episodes (`to_dict` is the JSON of `masspush evaluate`)."""
+
+    setting: str
+    model: str
+    pusher: str
+    policy: str
+    seed: int
+    episodes: int
+    """Episodes scored."""
+    failures: int
+    metrics: dict[str, float]
+    """`masspush.metrics.all_metrics` of the final estimates: percentage_error (the
+    paper's metric), relative_error, mae and the constant-guess floors."""
+    after_each_push: list[float]
+    """The paper's metric after push 1, 2, ..., K."""
+    model_file: str | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+    per_episode: dict[str, list] | None = None
+    """Each scored episode's index, final estimate and truth (`per_episode_record`)."""
+
+    @property
+    def percentage_error(self) -> float:
+        return self.metrics["percentage_error"]
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"setting": self.setting, "model": self.model}
+        if self.model_file is not None:
+            out["model_file"] = self.model_file
+        out.update(
+            pusher=self.pusher, policy=self.policy, seed=self.seed, episodes=self.episodes,
+            failures=self.failures, **self.metrics,
+            percentage_error_after_each_push=self.after_each_push, **self.extra,
+        )  # fmt: skip
+        if self.per_episode is not None:
+            out["per_episode"] = self.per_episode
+        return out
 
 
 def evaluate(
-    setting: str | Setting,
-    model: str | os.PathLike,
+    setting: Setting,
+    estimator: Estimator,
     episodes: int = 800,
     seed: int = 0,
-    pusher: str | None = None,
-    settings_file: str | os.PathLike | None = None,
     workers: int | None = None,
-    bayes: dict[str, Any] | None = None,
     per_episode: bool = False,
-) -> dict[str, Any]:
-    """Run `episodes` fresh episodes with the model's policy and report every metric.
-    `model` "bayes" / "bayes-random" is the particle filter (`masspush.bayes`), its
-    configuration changed by `bayes` (BayesConfig fields) where given. `per_episode` adds
-    each scored episode's index, final estimate and truth (`per_episode_record`), which the
-    filter always reports, so that two models can be compared on the same episodes."""
+) -> EvalResult:
+    """Run `episodes` fresh episodes of `setting` with `estimator` and score them.
+    `per_episode` adds each scored episode's index, final estimate and truth, so that two
+    estimators can be compared on the same episodes."""
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
-    spec = setting if isinstance(setting, Setting) else get_setting(setting, settings_file)
-    from masspush.bayes import BAYES_MODELS, evaluate_bayes
-
-    if str(model) in BAYES_MODELS:
-        return evaluate_bayes(spec, str(model), episodes, seed, pusher, overrides=bayes)
-    if bayes:
-        raise ValueError(f"bayes options apply to the particle filter, not to {model!r}")
-    path = resolve_model(model, spec.name)
-    predictor, meta = load_model(path, setting=spec.name, pusher=pusher)
-    pusher = pusher or meta.get("pusher", "stiff")
-    policy = model_policy(meta, path)
-    env_config = spec.env_config(pusher)
-    run = run_episodes(env_config, policy, np.arange(episodes), EVAL, seed, workers)
-    good = run.select(run.ok)
-    if len(good) == 0:
+    env_config = setting.env_config(estimator.pusher)
+    run = estimator.run(env_config, np.arange(episodes), seed, workers)
+    if len(run.truth) == 0:
         raise ValueError("every evaluation episode failed; nothing to score")
-    predictions = predictor.predict(good)
-    truth = good.mass_distribution
-    extra = {}
-    from masspush.uncertainty import coverage, head_path, load_head
-
-    if head_path(path).exists():  # the model's learned uncertainty
-        extra["coverage"] = coverage(predictor, load_head(head_path(path), spec.name), good)
-    result = {
-        "setting": spec.name,
-        "model": str(model),
-        "model_file": str(path),
-        "pusher": pusher,
-        "policy": policy.name,
-        "seed": seed,
-        "episodes": len(good),
-        "failures": int(len(run) - len(good)),
-        **all_metrics(predictions[:, -1], truth),
-        "percentage_error_after_each_push": [
-            percentage_error(predictions[:, k], truth) for k in range(predictions.shape[1])
+    final = run.estimates[:, -1]
+    return EvalResult(
+        setting=setting.name,
+        model=estimator.name,
+        pusher=estimator.pusher,
+        policy=estimator.policy,
+        seed=seed,
+        episodes=len(run.truth),
+        failures=int(run.failures),
+        metrics=all_metrics(final, run.truth),
+        after_each_push=[
+            percentage_error(run.estimates[:, k], run.truth) for k in range(run.estimates.shape[1])
         ],
-        **extra,
-    }
-    if per_episode:
-        result["per_episode"] = per_episode_record(
-            np.flatnonzero(run.ok), predictions[:, -1], truth
-        )
-    return result
+        model_file=estimator.model_file,
+        extra=run.extra,
+        per_episode=per_episode_record(run.index, final, run.truth) if per_episode else None,
+    )
 
 
 def per_episode_record(index, estimates, truths) -> dict[str, list]:

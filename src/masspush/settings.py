@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from masspush.config import EnvConfig, PhysicsConfig
-from masspush.pusher import PUSHERS
+from masspush.sim.pushers import PUSHERS
 
 if sys.version_info >= (3, 11):
     import tomllib

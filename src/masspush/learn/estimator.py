@@ -1,0 +1,59 @@
+"""A trained predictor with the pushing policy it was trained with, as an `Estimator`
+(`masspush.evaluate`): the paper's RP, RP+, TP and TP+ models."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from masspush.config import EnvConfig
+from masspush.data.rollout import EVAL, Policy, run_episodes
+from masspush.evaluate import EstimatorRun
+from masspush.learn.policy import model_policy
+from masspush.learn.predictor import MassPredictor, load_model
+from masspush.learn.uncertainty import PrecisionHead, coverage, head_path, load_head
+from masspush.sim.pushers import IDEAL_PUSHER
+
+
+class PredictorEstimator:
+    """Episodes pushed by `policy`, then the predictor's estimate after each push; with a
+    Dirichlet head (`masspush.learn.uncertainty`) the result also reports interval coverage."""
+
+    def __init__(
+        self, predictor: MassPredictor, policy: Policy, pusher: str, name: str,
+        model_file: str | None = None, head: PrecisionHead | None = None,
+    ):  # fmt: skip
+        self.predictor, self.policy_impl, self.pusher = predictor, policy, pusher
+        self.name, self.model_file, self.head = name, model_file, head
+        self.policy = policy.name
+
+    @classmethod
+    def from_file(
+        cls, path: str | os.PathLike, setting: str, pusher: str | None = None,
+        name: str | None = None,
+    ) -> PredictorEstimator:  # fmt: skip
+        """The model file `path` (trained for `setting`), pushed by `pusher` (the pusher it
+        was trained with by default), its policy and, where one lies beside it, its head."""
+        predictor, meta = load_model(path, setting=setting, pusher=pusher)
+        head = load_head(head_path(path), setting) if head_path(path).exists() else None
+        return cls(predictor, model_policy(meta, path), pusher or meta.get("pusher", IDEAL_PUSHER),
+                   name or str(path), str(path), head)  # fmt: skip
+
+    def run(
+        self, env_config: EnvConfig, indices: np.ndarray, seed: int, workers: int | None
+    ) -> EstimatorRun:
+        run = run_episodes(env_config, self.policy_impl, indices, EVAL, seed, workers)
+        good = run.select(run.ok)
+        if len(good) == 0:
+            return EstimatorRun(np.empty(0, int), np.empty((0, 0, 0)), np.empty((0, 0)), len(run))
+        extra = {}
+        if self.head is not None:
+            extra["coverage"] = coverage(self.predictor, self.head, good)
+        return EstimatorRun(
+            index=np.flatnonzero(run.ok),
+            estimates=self.predictor.predict(good),
+            truth=good.mass_distribution,
+            failures=int(len(run) - len(good)),
+            extra=extra,
+        )

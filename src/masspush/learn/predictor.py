@@ -1,0 +1,356 @@
+"""The LSTM predictor: push/observation history -> mass distribution, as the authors built it.
+
+Architecture (shared/notes/paper-details.md):
+    step input x_t = (a_t, q_{t+1}, lengths) -> FC 128 + ReLU -> LSTM 64 -> FC n -> softmax,
+    initial LSTM state (h_0, c_0) = (ReLU(FC 64 (q_0')), ReLU(FC 64 (q_0'))),
+    q_0' = (q_0, lengths); loss: squared error averaged over all K step outputs.
+Inputs are normalised with the training set's mean and standard deviation (stored in the
+model). Training: the paper's plain SGD (batch 16, lr 0.1 halved three times over four
+equal phases) by default, or Adam with larger batches (the faster option, measured in
+docs/results.md).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+from tqdm import tqdm
+
+from masspush.data.rollout import Episodes
+
+MODEL_FORMAT = "masspush-predictor"
+MODEL_VERSION = 1
+
+
+class ModelMismatchError(ValueError):
+    """A model file used with a setting or pusher it was not trained for."""
+
+
+FEATURES = ("paper", "relative")
+"""How observations enter the network. "paper": as observed, (x, y, yaw, joint angles) on
+the table. "relative": each rest pose in the frame of the one before it (the root's motion
+dx, dy turned into the previous root frame, the yaw change wrapped to [-pi, pi), and the
+joint angles before and after), which does not change when the chain stands elsewhere on
+the table or faces another way; q_0 then contributes only its joint angles."""
+
+
+def step_inputs(episodes: Episodes, features: str = "paper") -> tuple[np.ndarray, np.ndarray]:
+    """(q0 features (E, *), step features (E, K, *)) from recorded episodes."""
+    if features not in FEATURES:
+        raise ValueError(f"features must be one of {FEATURES}, got {features!r}")
+    lengths = episodes.lengths.astype(np.float32)
+    obs = episodes.observations.astype(np.float64)
+    k = episodes.actions.shape[1]
+    per_step_lengths = np.repeat(lengths[:, None, :], k, axis=1)
+    if features == "paper":
+        q0 = np.concatenate([obs[:, 0], lengths], axis=1)
+        steps = np.concatenate([episodes.actions, obs[:, 1:], per_step_lengths], axis=2)
+    else:
+        before, after = obs[:, :-1], obs[:, 1:]
+        yaw = before[..., 2]
+        dx, dy = after[..., 0] - before[..., 0], after[..., 1] - before[..., 1]
+        c, s = np.cos(yaw), np.sin(yaw)
+        motion = np.stack(
+            [
+                c * dx + s * dy,
+                -s * dx + c * dy,
+                (after[..., 2] - yaw + np.pi) % (2 * np.pi) - np.pi,
+            ],
+            axis=-1,
+        )
+        q0 = np.concatenate([obs[:, 0, 3:], lengths], axis=1)
+        steps = np.concatenate(
+            [episodes.actions, motion, before[..., 3:], after[..., 3:], per_step_lengths], axis=2
+        )
+    return q0.astype(np.float32), np.nan_to_num(steps).astype(np.float32)
+
+
+class MassPredictor(nn.Module):
+    """The paper's predictor, with input normalisation built in."""
+
+    def __init__(self, n_links: int, q0_dim: int, step_dim: int, features: str = "paper"):
+        super().__init__()
+        self.n_links, self.q0_dim, self.step_dim = n_links, q0_dim, step_dim
+        self.features_kind = features
+        self.embed = nn.Linear(step_dim, 128)
+        self.lstm = nn.LSTM(128, 64, batch_first=True)
+        self.init_h = nn.Linear(q0_dim, 64)
+        self.init_c = nn.Linear(q0_dim, 64)
+        self.head = nn.Linear(64, n_links)
+        for name, dim in (("q0", q0_dim), ("step", step_dim)):
+            self.register_buffer(f"{name}_mean", torch.zeros(dim))
+            self.register_buffer(f"{name}_std", torch.ones(dim))
+
+    def set_normaliser(self, q0: np.ndarray, steps: np.ndarray) -> None:
+        flat = steps.reshape(-1, steps.shape[-1])
+        for name, x in (("q0", q0), ("step", flat)):
+            getattr(self, f"{name}_mean").copy_(torch.as_tensor(x.mean(0)))
+            getattr(self, f"{name}_std").copy_(torch.as_tensor(np.maximum(x.std(0), 1e-6)))
+
+    def features(self, q0: torch.Tensor, steps: torch.Tensor) -> torch.Tensor:
+        """(E, K, 64) LSTM outputs: the predictor's features after each push."""
+        q0 = (q0 - self.q0_mean) / self.q0_std
+        steps = (steps - self.step_mean) / self.step_std
+        h0 = torch.relu(self.init_h(q0)).unsqueeze(0)
+        c0 = torch.relu(self.init_c(q0)).unsqueeze(0)
+        out, _ = self.lstm(torch.relu(self.embed(steps)), (h0, c0))
+        return out
+
+    def forward(self, q0: torch.Tensor, steps: torch.Tensor) -> torch.Tensor:
+        """(E, K, n) predicted mass distribution after each push."""
+        return torch.softmax(self.head(self.features(q0, steps)), dim=-1)
+
+    @torch.no_grad()
+    def predict(self, episodes: Episodes) -> np.ndarray:
+        """(E, K, n) predictions for recorded episodes (use [:, -1] for the final estimate)."""
+        self.eval()
+        q0, steps = step_inputs(episodes, self.features_kind)
+        return self(torch.as_tensor(q0), torch.as_tensor(steps)).numpy()
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """How to train a predictor; the defaults are the paper's [code]."""
+
+    optimizer: str = "sgd"
+    """"sgd" (the paper's) or "adam" (the faster option)."""
+    steps: int = 500_000
+    """Gradient steps [paper: 500k]."""
+    batch_size: int = 16
+    """Episodes per step [paper: 16]."""
+    lr: float = 0.1
+    """Initial learning rate [paper: 0.1], halved at 1/4, 1/2 and 3/4 of training."""
+    features: str = "paper"
+    """Input features, one of FEATURES ("paper": as observed)."""
+    validation_fraction: float = 0.05
+    """Share of episodes held out to report validation error."""
+    eval_every: int = 5_000
+    checkpoint_every: int = 10_000
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.optimizer not in ("sgd", "adam"):
+            raise ValueError(f"optimizer must be 'sgd' or 'adam', got {self.optimizer!r}")
+        for name in ("steps", "batch_size", "eval_every", "checkpoint_every"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+        if not 0 < self.lr < 10:
+            raise ValueError(f"lr must be in (0, 10), got {self.lr}")
+        if not 0 <= self.validation_fraction < 0.5:
+            raise ValueError(
+                f"validation_fraction must be in [0, 0.5), got {self.validation_fraction}"
+            )
+
+    def lr_at(self, step: int) -> float:
+        return self.lr * 0.5 ** min(3, (4 * step) // self.steps)
+
+
+FAST = TrainConfig(optimizer="adam", steps=20_000, batch_size=256, lr=3e-3)
+"""The faster option: Adam, 256 episodes a step, 20k steps (see docs/results.md)."""
+
+
+def save_model(path: str | os.PathLike, model: MassPredictor, meta: dict[str, Any]) -> None:
+    """A self-describing model file: weights, architecture, and what produced it."""
+    payload = {
+        "format": MODEL_FORMAT,
+        "version": MODEL_VERSION,
+        "arch": {
+            "n_links": model.n_links,
+            "q0_dim": model.q0_dim,
+            "step_dim": model.step_dim,
+            "features": model.features_kind,
+        },
+        "state_dict": model.state_dict(),
+        "meta": meta,
+    }
+    tmp = Path(str(path) + ".tmp")
+    torch.save(payload, tmp)
+    os.replace(tmp, path)
+
+
+def load_model(
+    path: str | os.PathLike, setting: str | None = None, pusher: str | None = None
+) -> tuple[MassPredictor, dict[str, Any]]:
+    """Load a predictor; refuse it for another setting or pusher than it was trained for."""
+    try:
+        payload = torch.load(path, map_location="cpu", weights_only=True)
+    except FileNotFoundError:
+        raise ValueError(f"no model file at {path}") from None
+    except Exception as err:
+        raise ValueError(f"{path} is not a readable model file: {err}") from None
+    if not isinstance(payload, dict) or payload.get("format") != MODEL_FORMAT:
+        raise ValueError(f"{path} is not a masspush predictor")
+    if payload.get("version") != MODEL_VERSION:
+        raise ValueError(
+            f"{path} has model format version {payload.get('version')}, "
+            f"this masspush reads {MODEL_VERSION}"
+        )
+    meta = payload["meta"]
+    trained_for = meta.get("setting", {}).get("name")
+    if setting is not None and trained_for != setting:
+        raise ModelMismatchError(
+            f"{path} was trained for setting {trained_for!r}, not {setting!r}; "
+            "use a model trained for this setting"
+        )
+    if pusher is not None and meta.get("pusher") != pusher:
+        raise ModelMismatchError(
+            f"{path} was trained with the {meta.get('pusher')!r} pusher, not {pusher!r}"
+        )
+    model = MassPredictor(**payload["arch"])
+    model.load_state_dict(payload["state_dict"])
+    model.eval()
+    return model, meta
+
+
+def train_predictor(
+    episodes: Episodes,
+    run_dir: str | os.PathLike,
+    config: TrainConfig = TrainConfig(),
+    meta: dict[str, Any] | None = None,
+    progress: bool = True,
+    init: MassPredictor | None = None,
+) -> tuple[MassPredictor, dict[str, Any]]:
+    """Train (or resume training) in `run_dir`; returns the model and a summary.
+
+    `run_dir` holds config.json, checkpoint.pt (model, optimiser, step, RNG state: a killed
+    run resumes exactly where it stopped), tensorboard/ and, at the end, predictor.pt.
+    `init` starts from another predictor's weights (fine-tuning) instead of from scratch.
+    """
+    from torch.utils.tensorboard import SummaryWriter
+
+    run = Path(run_dir)
+    run.mkdir(parents=True, exist_ok=True)
+    good = episodes.select(episodes.ok)
+    if len(good) < 2:
+        raise ValueError(f"only {len(good)} usable episodes; collect more data")
+    q0, steps = step_inputs(good, config.features)
+    target = good.mass_distribution.astype(np.float32)
+    order = np.random.default_rng(config.seed).permutation(len(good))
+    n_val = round(config.validation_fraction * len(good))
+    val_idx, train_idx = order[:n_val], order[n_val:]
+
+    torch.manual_seed(config.seed)
+    n_links = target.shape[1]
+    model = MassPredictor(n_links, q0.shape[1], steps.shape[2], config.features)
+    if init is not None:
+        model.load_state_dict(init.state_dict())
+    else:
+        model.set_normaliser(q0[train_idx], steps[train_idx])
+    optim_cls = torch.optim.SGD if config.optimizer == "sgd" else torch.optim.Adam
+    optimiser = optim_cls(model.parameters(), lr=config.lr)
+    rng = np.random.default_rng(config.seed + 1)
+    step, history = 0, []
+    best: dict[str, Any] = {"error": math.inf, "step": 0, "state": None}
+    ckpt = run / "checkpoint.pt"
+    if ckpt.exists():
+        state = torch.load(ckpt, map_location="cpu", weights_only=False)
+        if state["config"] != asdict(config):
+            raise ValueError(f"{run} holds a run with another config; use another run directory")
+        model.load_state_dict(state["model"])
+        optimiser.load_state_dict(state["optimiser"])
+        rng.bit_generator.state = state["rng"]
+        torch.set_rng_state(state["torch_rng"])
+        step, history = state["step"], state["history"]
+        best = state["best"]
+    (run / "config.json").write_text(
+        json.dumps({"train": asdict(config), "meta": meta or {}, "episodes": len(good)}, indent=2)
+    )
+
+    tensors = {
+        name: torch.as_tensor(x) for name, x in (("q0", q0), ("steps", steps), ("target", target))
+    }
+    writer = SummaryWriter(str(run / "tensorboard"))
+    started, start_step = time.perf_counter(), step
+    bar = tqdm(
+        total=config.steps,
+        initial=step,
+        desc="training predictor",
+        unit="step",
+        disable=not progress,
+    )
+    model.train()
+    while step < config.steps:
+        for group in optimiser.param_groups:
+            group["lr"] = config.lr_at(step)
+        batch = torch.as_tensor(rng.choice(train_idx, size=config.batch_size))
+        pred = model(tensors["q0"][batch], tensors["steps"][batch])
+        loss = ((pred - tensors["target"][batch, None, :]) ** 2).mean()
+        optimiser.zero_grad()
+        loss.backward()
+        optimiser.step()
+        step += 1
+        bar.update(1)
+        if step % 100 == 0:
+            writer.add_scalar("losses/train_mse", loss.item(), step)
+            writer.add_scalar("charts/learning_rate", config.lr_at(step), step)
+        if step % config.eval_every == 0 or step == config.steps:
+            val = _validation(model, tensors, val_idx)
+            history.append({"step": step, **val})
+            # Keep the weights that did best on held-out episodes: longer training overfits.
+            error = val.get("percentage_error", math.inf)
+            if error < best["error"] or best["state"] is None:
+                state_dict = model.state_dict()
+                best = {
+                    "error": error,
+                    "step": step,
+                    "state": {k: v.clone() for k, v in state_dict.items()},
+                }
+            for key, value in val.items():
+                writer.add_scalar(f"validation/{key}", value, step)
+            bar.set_postfix(val_pct=f"{val.get('percentage_error', float('nan')):.2f}")
+            model.train()
+        if step % config.checkpoint_every == 0 or step == config.steps:
+            torch.save(
+                {
+                    "model": model.state_dict(),
+                    "optimiser": optimiser.state_dict(),
+                    "rng": rng.bit_generator.state,
+                    "torch_rng": torch.get_rng_state(),
+                    "step": step,
+                    "history": history,
+                    "config": asdict(config),
+                    "best": best,
+                },
+                str(ckpt) + ".tmp",
+            )
+            os.replace(str(ckpt) + ".tmp", ckpt)
+    bar.close()
+    writer.close()
+    elapsed = time.perf_counter() - started
+    if best["state"] is not None:
+        model.load_state_dict(best["state"])
+    summary = {
+        "steps": step,
+        "best_step": best["step"],
+        "best_validation_error": best["error"],
+        "episodes": len(good),
+        "train_episodes": len(train_idx),
+        "validation_episodes": len(val_idx),
+        "history": history,
+        "samples_per_s": (step - start_step) * config.batch_size / elapsed if elapsed else math.nan,
+        "train_config": asdict(config),
+    }
+    save_model(run / "predictor.pt", model, {**(meta or {}), "training": summary})
+    return model, summary
+
+
+def _validation(model: MassPredictor, tensors: dict, idx: np.ndarray) -> dict[str, float]:
+    from masspush.metrics import all_metrics
+
+    if len(idx) == 0:
+        return {}
+    model.eval()
+    with torch.no_grad():
+        index = torch.as_tensor(idx)
+        pred = model(tensors["q0"][index], tensors["steps"][index])[:, -1].numpy()
+    metrics = all_metrics(pred, tensors["target"][index].numpy())
+    return {k: v for k, v in metrics.items() if not k.startswith("constant_floor_")}

@@ -1,0 +1,250 @@
+"""The paper's alternating training (Sec. 3.3): predictor and pushing policy in turn.
+
+    predictor-0   trained on random-policy rollouts
+    for i = 1..M (meta-iterations):
+      policy-i      PPO against the frozen predictor-(i-1), continuing from policy-(i-1)
+      data-i        fresh rollouts of policy-i (sampling its actions)
+      predictor-i   predictor-(i-1) fine-tuned on data-i, then evaluated with policy-i
+    data-final      rollouts of the deterministic policy-M
+    predictor-final predictor-M fine-tuned on data-final
+
+TP is predictor-1 with policy-1, TP+ is predictor-final with policy-M [paper, Sec. 4.1].
+Every stage writes its result into the run directory and is skipped when it is there, and
+every stage resumes inside itself (collections by shard, training from checkpoints), so a
+killed `masspush train` continues where it stopped when run again.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from masspush.data.dataset import code_version, collect, load_dataset
+from masspush.evaluate import evaluate
+from masspush.learn.estimator import PredictorEstimator
+from masspush.learn.policy import LearnedPolicy, PolicyConfig, train_policy
+from masspush.learn.predictor import FAST, TrainConfig, load_model, train_predictor
+from masspush.settings import Setting
+
+PREDICTOR = replace(FAST, features="relative")
+"""Training of predictor-0: our shipped RP recipe (docs/results.md)."""
+FINETUNE = replace(FAST, features="relative", steps=5_000, lr=1e-3)
+"""Each fine-tuning of the predictor on a policy's rollouts [ours]."""
+
+# Random-policy episodes for the first predictor [paper-details.md]: 16k (2 links), 32k (3).
+FIRST_EPISODES = {2: 16_000, 3: 32_000}
+
+
+@dataclass(frozen=True)
+class RecipeConfig:
+    """The whole recipe's sizes; defaults are the paper's where it gives them."""
+
+    meta_iterations: int = 6
+    """Policy / predictor rounds [paper: 6]."""
+    first_episodes: int | None = None
+    """Random-policy episodes for predictor-0; None: FIRST_EPISODES for the chain."""
+    iteration_episodes: int | None = None
+    """Fresh policy rollouts per meta-iteration; None: half of first_episodes [ours]."""
+    final_episodes: int | None = None
+    """Deterministic-policy rollouts for TP+; None: first_episodes [ours]."""
+    policy: PolicyConfig = field(default_factory=PolicyConfig)
+    predictor: TrainConfig = PREDICTOR
+    finetune: TrainConfig = FINETUNE
+    eval_episodes: int = 800
+    """Fresh episodes for the error after each meta-iteration [paper: 800]."""
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.meta_iterations < 1:
+            raise ValueError(f"meta_iterations must be >= 1, got {self.meta_iterations}")
+        for name in ("first_episodes", "iteration_episodes", "final_episodes"):
+            value = getattr(self, name)
+            if value is not None and value < 2:
+                raise ValueError(f"{name} must be >= 2, got {value}")
+        if self.eval_episodes < 1:
+            raise ValueError(f"eval_episodes must be >= 1, got {self.eval_episodes}")
+
+    def episodes(self, n_links: int) -> tuple[int, int, int]:
+        first = self.first_episodes or FIRST_EPISODES.get(n_links, 16_000 * (n_links - 1))
+        return first, self.iteration_episodes or first // 2, self.final_episodes or first
+
+
+class Recipe:
+    """One run of the recipe for one setting and pusher, in `run_dir`."""
+
+    def __init__(
+        self,
+        setting: Setting,
+        pusher: str,
+        run_dir: str | os.PathLike,
+        config: RecipeConfig = RecipeConfig(),
+        log: Callable[[str], None] = print,
+        progress: bool = True,
+    ):
+        self.setting, self.pusher, self.config = setting, pusher, config
+        self.dir = Path(run_dir)
+        self.log, self.progress = log, progress
+        self.env_config = setting.env_config(pusher)
+        self.state_path = self.dir / "state.json"
+
+    # --- state ------------------------------------------------------------------------
+    def _state(self) -> dict[str, Any]:
+        if self.state_path.exists():
+            state = json.loads(self.state_path.read_text())
+            if state["config"] != self._identity():
+                raise ValueError(
+                    f"{self.dir} holds a run with another setting, pusher or config; "
+                    "use another --out directory"
+                )
+            return state
+        return {"config": self._identity(), "timings": {}, "history": []}
+
+    def _identity(self) -> dict[str, Any]:
+        return json.loads(
+            json.dumps(
+                {"setting": self.setting.as_dict(), "pusher": self.pusher, **asdict(self.config)}
+            )
+        )
+
+    def _save(self, state: dict[str, Any]) -> None:
+        tmp = self.state_path.with_suffix(".tmp")
+        tmp.write_text(json.dumps(state, indent=2))
+        tmp.replace(self.state_path)
+
+    def _stage(self, state: dict[str, Any], name: str, run: Callable[[], Any]) -> None:
+        """Run a stage unless done; record its wall-clock time."""
+        if name in state["timings"]:
+            return
+        self.log(f"[{self.setting.name}] {name} ...")
+        t0 = time.perf_counter()
+        run()
+        state["timings"][name] = round(time.perf_counter() - t0, 1)
+        self._save(state)
+        self.log(f"[{self.setting.name}] {name} done in {state['timings'][name]:.0f} s")
+
+    # --- paths ------------------------------------------------------------------------
+    def predictor(self, i: int | str) -> Path:
+        return self.dir / f"predictor-{i}" / "predictor.pt"
+
+    def policy(self, i: int) -> Path:
+        return self.dir / f"policy-{i}" / "policy.zip"
+
+    def exports(self, shipped_rp: bool = True) -> dict[str, Path]:
+        """What ships (`masspush.models.ship`): TP (predictor-1, policy-1) and TP+
+        (predictor-final, policy-M); and, for a setting without RP baselines (`shipped_rp`
+        False, e.g. real-ur10), predictor-0 as its random-push RP."""
+        out = {} if shipped_rp else {"rp": self.predictor(0)}
+        return {**out, "tp": self.predictor(1), "tp+": self.predictor("final")}
+
+    # --- the recipe -------------------------------------------------------------------
+    def run(self) -> dict[str, Any]:
+        self.dir.mkdir(parents=True, exist_ok=True)
+        state = self._state()
+        self._save(state)
+        cfg, n = self.config, self.setting.n_links
+        first, per_iteration, final = cfg.episodes(n)
+        m = cfg.meta_iterations
+
+        self._stage(state, "data-0", lambda: self._collect("data-0", first, "random", 0))
+        self._stage(
+            state,
+            "predictor-0",
+            lambda: self._train_predictor(0, "data-0", cfg.predictor, None, "random", None),
+        )
+        self._stage(state, "evaluate-0", lambda: self._evaluate(state, 0))
+        for i in range(1, m + 1):
+            self._stage(state, f"policy-{i}", lambda i=i: self._train_policy(i))
+            self._stage(
+                state,
+                f"data-{i}",
+                lambda i=i: self._collect(f"data-{i}", per_iteration, self._learned(i, False), i),
+            )
+            self._stage(
+                state,
+                f"predictor-{i}",
+                lambda i=i: self._train_predictor(
+                    i, f"data-{i}", cfg.finetune, self.predictor(i - 1), "learned", i
+                ),
+            )
+            self._stage(state, f"evaluate-{i}", lambda i=i: self._evaluate(state, i))
+        self._stage(
+            state, "data-final", lambda: self._collect("data-final", final, self._learned(m), m + 1)
+        )
+        self._stage(
+            state,
+            "predictor-final",
+            lambda: self._train_predictor(
+                "final", "data-final", cfg.finetune, self.predictor(m), "learned", m
+            ),
+        )
+        self._stage(state, "evaluate-final", lambda: self._evaluate(state, "final"))
+        return state
+
+    def _learned(self, i: int, deterministic: bool = True) -> LearnedPolicy:
+        return LearnedPolicy(self.policy(i), self.config.policy.algo, deterministic)
+
+    def _collect(self, name: str, episodes: int, policy, stream: int) -> None:
+        collect(
+            self.setting,
+            self.dir / name,
+            episodes=episodes,
+            pusher=self.pusher,
+            policy=policy,
+            base_seed=1000 * self.config.seed + stream,
+            progress=self.progress,
+        )
+
+    def _train_policy(self, i: int) -> None:
+        train_policy(
+            self.env_config,
+            self.predictor(i - 1),
+            self.dir / f"policy-{i}",
+            replace(self.config.policy, seed=self.config.policy.seed + i),
+            init=self.policy(i - 1) if i > 1 else None,
+            progress=self.progress,
+            meta={
+                "setting": self.setting.as_dict(),
+                "code_version": code_version(),
+                "recipe_stage": f"policy-{i}",
+            },
+        )
+
+    def _train_predictor(
+        self,
+        i: int | str,
+        data: str,
+        train: TrainConfig,
+        init: Path | None,
+        policy: str,
+        policy_index: int | None,
+    ) -> None:
+        _, episodes = load_dataset(self.dir / data)
+        meta = {
+            "setting": self.setting.as_dict(),
+            "pusher": self.pusher,
+            "policy": policy,
+            "dataset": str(self.dir / data),
+            "dataset_episodes": len(episodes),
+            "code_version": code_version(),
+            "recipe_stage": f"predictor-{i}",
+        }
+        if policy_index is not None:
+            # Relative to the model file, so that a copied pair of files stays a pair.
+            meta["policy_file"] = f"../policy-{policy_index}/policy.zip"
+            meta["policy_algo"] = self.config.policy.algo
+        start = load_model(init)[0] if init is not None else None
+        train_predictor(
+            episodes, self.predictor(i).parent, train, meta, progress=self.progress, init=start
+        )
+
+    def _evaluate(self, state: dict[str, Any], i: int | str) -> None:
+        estimator = PredictorEstimator.from_file(self.predictor(i), self.setting.name)
+        scores = evaluate(
+            self.setting, estimator, episodes=self.config.eval_episodes, seed=self.config.seed
+        )
+        state["history"].append({"stage": f"predictor-{i}", **scores.to_dict()})

@@ -1,0 +1,164 @@
+"""Robot backends: the simulation, the sim-to-real target world and recorded sessions
+behind the `masspush.real.robot.Robot` interface, and `make_robot` to pick one by name."""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+import numpy as np
+
+from masspush.real.robot import PushReport, RestPose, Robot
+from masspush.real.target_world import TargetWorldRobot
+from masspush.sim.pushers import PUSHERS
+
+
+class SimRobot:
+    """The simulation as a robot: each `start` places a new random chain of the setting."""
+
+    def __init__(
+        self,
+        setting,
+        pusher: str | None = None,
+        seed: int = 0,
+        masses: tuple[float, ...] | None = None,
+        pushes: int | None = None,
+    ):
+        from dataclasses import replace
+
+        from masspush.env import ChainEnv
+        from masspush.settings import get_setting
+
+        self.setting = get_setting(setting) if isinstance(setting, str) else setting
+        self.pusher = pusher or self.setting.pusher
+        config = self.setting.env_config(self.pusher)
+        # The environment ends an episode after the setting's pushes unless told otherwise
+        # (runs of the policy, `run_segments`, push on).
+        if pushes is not None:
+            config = replace(config, pushes=pushes)
+        self.env = ChainEnv.from_config(config)
+        self.n_links = self.setting.n_links
+        self.seed = seed
+        self.options = None if masses is None else {"masses": list(masses)}
+        """Pinned link masses (kg) for every chain, e.g. to record a labelled class."""
+        self.truth: dict[str, Any] = {}
+        """The current chain's hidden parameters (masses, friction), for scoring only."""
+
+    def start(self) -> RestPose:
+        while True:
+            obs, info = self.env.reset(seed=self.seed, options=self.options)
+            self.seed += 1
+            if info["failure"] is None:
+                break
+        self.truth = {k: info[k] for k in ("masses", "mass_distribution", "friction")}
+        self.truth["config"] = info["config"]
+        return RestPose(obs[: self.env.physics.obs_dim].copy(), info["lengths"].copy())
+
+    def push(self, action: np.ndarray) -> PushReport:
+        obs, _, _, _, info = self.env.step(np.asarray(action, np.float32))
+        details = {**info["push"], "settle_time": info["settle_time"], "config": info["config"]}
+        if info["failure"] is not None:
+            return PushReport(None, info["failure"], details)
+        return PushReport(obs[: self.env.physics.obs_dim].copy(), None, details)
+
+    def close(self) -> None:
+        self.env.close()
+
+
+class ReplayMismatchError(RuntimeError):
+    """A replayed session was asked for a push other than the one recorded."""
+
+
+class ReplayRobot:
+    """Plays back a recorded session: `start` gives the next episode's first rest pose,
+    `push` the recorded rest pose after the recorded push. Asking for another push than the
+    recorded one is refused: what would have happened is not in the file."""
+
+    def __init__(self, recording: str | os.PathLike, tolerance: float = 1e-4):
+        from masspush.data.recording import read_recording
+
+        self.recording = read_recording(recording)
+        self.n_links = self.recording.n_links
+        self.tolerance = tolerance
+        self._next = 0
+        self.episode: dict[str, Any] | None = None
+        self._k = 0
+
+    @property
+    def recorded_actions(self) -> np.ndarray:
+        """The current episode's recorded actions (what a `RecordedPolicy` replays)."""
+        assert self.episode is not None, "start() first"
+        return np.asarray(self.episode["actions"], np.float32)
+
+    def start(self) -> RestPose:
+        if self._next >= len(self.recording.episodes):
+            raise StopIteration("every recorded episode has been replayed")
+        self.episode = self.recording.episodes[self._next]
+        self._next += 1
+        self._k = 0
+        observations = np.asarray(self.episode["observations"], np.float32)
+        return RestPose(observations[0], np.asarray(self.episode["lengths"], np.float32))
+
+    def push(self, action: np.ndarray) -> PushReport:
+        assert self.episode is not None, "start() first"
+        actions = self.recorded_actions
+        if self._k >= len(actions):
+            raise ReplayMismatchError(
+                f"episode {self.episode['id']!r} has only {len(actions)} recorded pushes"
+            )
+        if np.max(np.abs(np.asarray(action) - actions[self._k])) > self.tolerance:
+            raise ReplayMismatchError(
+                f"episode {self.episode['id']!r}, push {self._k + 1}: asked for "
+                f"{np.round(action, 4).tolist()}, recorded {actions[self._k].tolist()}; "
+                "replay with the recorded pushes (policy 'recorded')"
+            )
+        self._k += 1
+        config = np.asarray(self.episode["observations"][self._k], np.float32)
+        return PushReport(config, None, {"id": self.episode["id"]})
+
+    def close(self) -> None:
+        pass
+
+
+class RecordedPolicy:
+    """The pushes a `ReplayRobot`'s current episode recorded, as a rollout Policy."""
+
+    name = "recorded"
+
+    def __init__(self, robot: ReplayRobot):
+        self.robot = robot
+
+    def reset(self, seeds: np.ndarray) -> None:
+        pass
+
+    def act(self, observations, actions, step, lengths) -> np.ndarray:
+        return self.robot.recorded_actions[step][None]
+
+
+BACKENDS = ("target", "replay")
+"""Robot backends besides the simulated pushers."""
+
+def make_robot(
+    backend: str,
+    setting,
+    recording: str | None = None,
+    seed: int = 0,
+    masses: tuple[float, ...] | None = None,
+    lab: int | None = None,
+) -> Robot:
+    """A robot by backend name: stiff, kuka, ur10 (simulated), target (the sim-to-real
+    target world, `masspush.real.target_world`; `lab` keeps one lab's constants) or replay (a
+    recording)."""
+    if lab is not None and backend != "target":
+        raise ValueError(f"a lab is one draw of the target world; backend {backend!r} has none")
+    if backend in PUSHERS:
+        return SimRobot(setting, backend, seed, masses)
+    if backend == "target":
+        return TargetWorldRobot(setting, seed=seed, masses=masses, lab=lab)
+    if backend == "replay":
+        if recording is None:
+            raise ValueError("the replay backend needs --episodes FILE (a recording)")
+        return ReplayRobot(recording)
+    raise ValueError(f"unknown robot backend {backend!r}; known: {[*PUSHERS, *BACKENDS]}")
+
+

@@ -1,0 +1,194 @@
+"""The robot interface: what a lab implements to run masspush on its own arm.
+
+A `Robot` starts an episode with a chain lying still on the table and reports its rest
+configuration, then executes pushes one at a time, each followed by waiting for the chain
+to come to rest and observing it again. masspush owns everything else: which push to make
+(a policy), what the pushes say about the masses (a predictor), and the record of it all.
+
+Backends (`masspush.real.backends`): `SimRobot` (the simulated stiff pusher, KUKA or
+UR10), `TargetWorldRobot` (a simulated world unlike training, `masspush.real.target_world`)
+and `ReplayRobot` (plays back a recorded session, `masspush.data.recording`). A hardware
+backend is a class with the same three methods; docs/real-robot.md shows one.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+from masspush.data.rollout import Episodes
+
+
+@dataclass(frozen=True)
+class RestPose:
+    """The chain at rest, as observed: table frame, metres and radians."""
+
+    config: np.ndarray
+    """(3 + n - 1,): x, y of the first link's centre, its yaw, then the joint angles."""
+    lengths: np.ndarray
+    """(n,): link lengths, m."""
+
+
+@dataclass(frozen=True)
+class PushReport:
+    """What happened in one push."""
+
+    config: np.ndarray | None
+    """The rest configuration after the push; None when it failed."""
+    failure: str | None = None
+    """None, or why the push failed (the chain tipped over, left the table, was hit by
+    something other than the tool): the episode ends there."""
+    details: dict[str, Any] = field(default_factory=dict)
+    """Backend-specific extras (the simulation reports the executed push, settle time)."""
+
+
+class Robot(Protocol):
+    """A robot that pushes a chain and observes it at rest."""
+
+    n_links: int
+
+    def start(self) -> RestPose:
+        """Begin an episode: the chain is on the table, at rest; observe it."""
+
+    def push(self, action: np.ndarray) -> PushReport:
+        """Execute the push for `action` (in [-1, 1]^2, docs/real-robot.md), wait until the
+        chain is at rest, observe it."""
+
+    def close(self) -> None:
+        """Release the hardware."""
+
+
+@dataclass
+class EstimationEpisode:
+    """One episode run through a robot: what was seen, done and estimated."""
+
+    start: RestPose
+    actions: list[np.ndarray] = field(default_factory=list)
+    reports: list[PushReport] = field(default_factory=list)
+    estimates: list[np.ndarray] = field(default_factory=list)
+    run_estimates: list[np.ndarray] = field(default_factory=list)
+    """Each run's last estimate, when the episode is runs of the policy (`run_segments`)."""
+
+    @property
+    def failure(self) -> str | None:
+        return self.reports[-1].failure if self.reports else None
+
+    def recorded(self, **fields: Any) -> dict[str, Any]:
+        """The episode as a recording's episode (`masspush.data.recording`): its successful
+        pushes and rest poses, plus `fields` (id, label, masses...)."""
+        configs = [r.config for r in self.reports if r.config is not None]
+        return {
+            **fields,
+            "lengths": self.start.lengths,
+            "observations": [self.start.config, *configs],
+            "actions": self.actions[: len(configs)],
+        }
+
+    def history(self) -> Episodes:
+        """The successful pushes so far, in the predictor's input format."""
+        configs = [self.start.config] + [r.config for r in self.reports if r.config is not None]
+        k = len(configs) - 1
+        return Episodes.history(
+            np.asarray(configs, np.float32)[None],
+            np.asarray(self.actions[:k], np.float32).reshape(1, k, 2),
+            self.start.lengths[None].astype(np.float32),
+        )
+
+
+PushCallback = Callable[[int, np.ndarray, PushReport, "np.ndarray | None"], None]
+
+
+def run_estimation(
+    robot: Robot,
+    predictor,
+    policy,
+    pushes: int,
+    on_push: PushCallback | None = None,
+    start: RestPose | None = None,
+    seed: int = 0,
+) -> EstimationEpisode:
+    """One episode: the policy picks each push from what has been seen, the robot executes
+    it, and the predictor estimates the mass distribution after it. `on_push(k, action,
+    report, estimate)` hears of every push as it happens (estimate None for a failed push);
+    `start` is the episode's first rest pose when the caller has started the robot."""
+    rest = start if start is not None else robot.start()
+    episode = EstimationEpisode(rest)
+    d = len(rest.config)
+    observed = np.full((1, pushes + 1, d), np.nan, np.float32)
+    chosen = np.full((1, pushes, 2), np.nan, np.float32)
+    observed[0, 0] = rest.config
+    lengths = rest.lengths[None].astype(np.float32)
+    policy.reset(np.array([seed], np.uint64))
+    for k in range(pushes):
+        action = np.asarray(policy.act(observed, chosen, k, lengths)[0], np.float32)
+        result = robot.push(action)
+        episode.actions.append(action)
+        episode.reports.append(result)
+        estimate = None
+        if result.failure is None:
+            chosen[0, k], observed[0, k + 1] = action, result.config
+            estimate = predictor.predict(episode.history())[0, -1]
+            episode.estimates.append(estimate)
+        if on_push is not None:
+            on_push(k, action, result, estimate)
+        if result.failure is not None:
+            break
+    return episode
+
+
+def run_segments(
+    robot: Robot,
+    predictor,
+    policy,
+    pushes: int,
+    segments: int,
+    on_push: PushCallback | None = None,
+    seed: int = 0,
+) -> EstimationEpisode:
+    """`segments` episodes of `pushes` pushes in a row on the same chain, each starting where
+    the last one left it, the policy and the predictor starting afresh each time: one
+    episode of up to segments x pushes pushes (`masspush.real.finetune.segments_of` cuts it back).
+    Its estimates are each segment's own. With one segment this is `run_estimation`."""
+    if segments < 1:
+        raise ValueError(f"segments must be >= 1, got {segments}")
+    rest = robot.start()
+    whole = EstimationEpisode(rest)
+    for s in range(segments):
+        told = None if on_push is None else _numbered_from(s * pushes, on_push)
+        part = run_estimation(
+            robot, predictor, policy, pushes, told, start=rest, seed=seed * segments + s
+        )
+        whole.actions += part.actions
+        whole.reports += part.reports
+        whole.estimates += part.estimates
+        whole.run_estimates += part.estimates[-1:]
+        if part.failure is not None:
+            break
+        rest = RestPose(part.reports[-1].config, rest.lengths)
+    return whole
+
+
+def _numbered_from(first: int, on_push: PushCallback) -> PushCallback:
+    """`on_push` hearing a run's pushes numbered on from `first`."""
+
+    def told(k, action, report, estimate) -> None:
+        on_push(first + k, action, report, estimate)
+
+    return told
+
+
+def print_push(k: int, action: np.ndarray, result: PushReport, estimate) -> None:
+    """The plain report of a push, for `masspush run`."""
+    if result.failure is not None:
+        print(f"push {k + 1}: a={fmt(action, 2)} failed ({result.failure})")
+        return
+    print(f"push {k + 1}: a={fmt(action, 2)} -> at rest q{k + 1} = {fmt(result.config)}")
+    print(f"  estimate {fmt(estimate)}")
+
+
+def fmt(values, digits: int = 3) -> str:
+    """Numbers as a short signed list, for reports."""
+    return "[" + ", ".join(f"{v:+.{digits}f}" for v in np.asarray(values, dtype=float)) + "]"

@@ -1,0 +1,374 @@
+"""The paper's real-robot protocol, run in the sim-to-real target world.
+
+For each policy (random pushes with the random-push predictor RP, the learned policy with
+TP+), episodes of the paper's five mass classes are run in `masspush.real.target_world` and
+recorded like real ones (`masspush.data.recording`, labelled). A classifier on the predictor's
+features is then cross-validated on each recording, as the paper did with its UR10
+episodes [paper-details.md, "Real robot"]. Recordings are kept, so a rerun only
+re-scores; `masspush finetune` on them gives the same accuracies. `lab` keeps one lab's
+setup for every episode (`target_world.Lab`); `segments` runs each policy several times per
+episode, and the classifier reads the runs as `ClassifierConfig.runs` says (by default each
+on its own, an episode's runs' log-probabilities added up).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from tqdm import tqdm
+
+from masspush.real.finetune import (
+    FEATURE_KINDS,
+    PAPER_CLASSES,
+    ClassifierConfig,
+    classifier_inputs,
+    cross_validate,
+    first_pushes,
+    labelled,
+    predictor_features,
+)
+
+if TYPE_CHECKING:
+    from masspush.real.target_world import TargetWorld
+
+PAPER_ACCURACY = {"random": 40.74, "learned": 81.4}
+"""The paper's real-robot accuracies, % (chance 20 %) [paper-details.md]."""
+ARMS = {"random": "rp", "learned": "tp+"}
+"""Which shipped model each arm of the experiment uses by default; each brings its own
+policy. A recording names its model unless it is the default (`record_arm`)."""
+WORLDS = ("target", "training")
+
+
+@dataclass(frozen=True)
+class Sim2RealConfig:
+    setting: str = "real-ur10"
+    episodes_per_class: int = 30
+    """Usable episodes (at least one push seen) per class and policy [paper: 30]."""
+    seed: int = 0
+    world: str = "target"
+    """"target": the sim-to-real target world; "training": the world the models were
+    trained in (the control: what the protocol gives without any gap)."""
+    severity: float = 1.0
+    """The target world's differences from training, scaled (`target_world.scaled_world`):
+    1 the target world, 0 the training world's knobs; only with world "target"."""
+    lab: int | None = None
+    """None: every episode draws the target world's constants afresh (a lab of its own per
+    episode, the stress test); a seed: one lab's constants for all episodes and each class's
+    object its own (`target_world.Lab`), as in a real lab; only with world "target"."""
+    segments: int = 1
+    """Each episode runs the policy this many times in a row on the same chain, each run the
+    setting's pushes (`masspush.real.robot.run_segments`); the classifier reads the runs as
+    `classifier.runs` says. 1: the paper's protocol."""
+    classifier: ClassifierConfig = field(default_factory=ClassifierConfig)
+    models: dict[str, str] = field(default_factory=lambda: dict(ARMS))
+    """Each arm's model (shipped name or path): its policy pushes, its predictor's
+    features feed the classifier."""
+
+    def __post_init__(self) -> None:
+        if set(self.models) != set(ARMS):
+            raise ValueError(f"models must name one model for each of {list(ARMS)}")
+        if self.world not in WORLDS:
+            raise ValueError(f"world must be one of {WORLDS}, got {self.world!r}")
+        if not 0 <= self.severity <= 1:
+            raise ValueError(f"severity must be in [0, 1], got {self.severity!r}")
+        if self.world != "target" and self.severity != 1:
+            raise ValueError("severity scales the target world; it needs world 'target'")
+        if self.segments < 1:
+            raise ValueError(f"segments must be >= 1, got {self.segments}")
+        if self.world != "target" and self.lab is not None:
+            raise ValueError("a lab is one draw of the target world; it needs world 'target'")
+        if self.episodes_per_class < self.classifier.folds:
+            raise ValueError(
+                f"episodes_per_class must be >= the {self.classifier.folds} folds, "
+                f"got {self.episodes_per_class}"
+            )
+
+
+def record_classes(
+    config: Sim2RealConfig, predictor, policy, robot_name: str, desc: str = "",
+    progress: bool = True, target: TargetWorld | None = None,
+):  # fmt: skip
+    """`config.episodes_per_class` usable episodes (at least one push seen) of each of the
+    paper's classes, pushed by `policy` in `config.world`: the recording, labelled, and the
+    failed pushes by reason. `target` replaces the target world (default: the target world
+    at `config.severity`)."""
+    from masspush.data.recording import Recording
+    from masspush.real.backends import SimRobot
+    from masspush.real.robot import run_segments
+    from masspush.real.target_world import TargetWorldRobot, scaled_world
+    from masspush.settings import get_setting
+
+    setting = get_setting(config.setting)
+    pushes = setting.env_config().pushes
+    recording = Recording(n_links=setting.n_links, robot=robot_name, setting=setting.name)
+    failures: dict[str, int] = {}
+    wanted = config.episodes_per_class * len(PAPER_CLASSES)
+    world = target or scaled_world(config.severity)
+    bar = tqdm(total=wanted, desc=desc, disable=not progress)
+    for c, (label, masses) in enumerate(PAPER_CLASSES.items()):
+        # Seeds differ between classes but are shared by the two arms: both see the same
+        # chains, frictions and biases, so the comparison is paired.
+        first = config.seed + 100_000 * c
+        robot = (
+            TargetWorldRobot(setting, world, seed=first, masses=masses, lab=config.lab)
+            if config.world == "target"
+            else SimRobot(setting, seed=first, masses=masses, pushes=pushes * config.segments)
+        )
+        got = 0
+        while got < config.episodes_per_class:
+            episode = run_segments(
+                robot, predictor, policy, pushes, config.segments, seed=robot.seed
+            )
+            if episode.failure is not None:
+                failures[episode.failure] = failures.get(episode.failure, 0) + 1
+            if not episode.estimates:
+                continue
+            got += 1
+            recording.episodes.append(
+                episode.recorded(id=f"{label}-{got:03d}", label=label, masses=robot.truth["masses"])
+            )
+            bar.update()
+        robot.close()
+    bar.close()
+    return recording, failures
+
+
+def record_arm(
+    config: Sim2RealConfig, arm: str, path: Path, progress: bool = True,
+    target: TargetWorld | None = None, robot_name: str | None = None,
+) -> dict[str, Any]:  # fmt: skip
+    """Run one arm's episodes in the target world into the recording at `path` (kept and
+    reused when complete, with its failed-push counts beside it); returns the counts.
+    `target` replaces the target world (`record_classes`); `robot_name`, which names the
+    recording and decides whether a kept one is reused, then tells the worlds apart."""
+    from masspush.data.recording import read_recording, write_recording
+    from masspush.models import model_and_policy
+
+    wanted = config.episodes_per_class * len(PAPER_CLASSES)
+    counts = path.with_suffix(".failures.json")
+    model = config.models[arm]
+    if robot_name is None:
+        robot_name = f"masspush {config.world} world"
+        if config.severity != 1:
+            robot_name += f" (differences x{config.severity:g})"
+        if config.lab is not None:
+            robot_name += f", lab {config.lab}"
+        if config.segments != 1:
+            robot_name += f", {config.segments} runs of the policy per episode"
+        robot_name += "" if model == ARMS[arm] else f", {model}"
+    if path.exists() and counts.exists():
+        recording = read_recording(path)
+        if len(recording.episodes) == wanted and recording.robot == robot_name:
+            return {"episodes": wanted, "failed_pushes": json.loads(counts.read_text()),
+                    "reused": True}  # fmt: skip
+    predictor, _, policy = model_and_policy(model, config.setting)
+    recording, failures = record_classes(
+        config,
+        predictor,
+        policy,
+        robot_name,
+        f"{config.world} world, {arm} pushes",
+        progress,
+        target,
+    )
+    write_recording(path, recording)
+    counts.write_text(json.dumps(failures) + "\n")
+    return {"episodes": wanted, "failed_pushes": failures, "reused": False}
+
+
+def score_arm(config: Sim2RealConfig, arm: str, path: Path) -> dict[str, Any]:
+    """Cross-validated accuracy of the classifier on one arm's recording, with each kind
+    of predictor feature, and the predictor's own error on it."""
+    from masspush.data.recording import read_recording
+    from masspush.learn.predictor import load_model
+    from masspush.metrics import percentage_error
+    from masspush.models import resolve_model
+    from masspush.settings import get_setting
+
+    recording = read_recording(path)
+    model = config.models[arm]
+    predictor, _ = load_model(resolve_model(model, config.setting), config.setting)
+    episodes = recording.to_episodes()
+    labels, classes = labelled(recording)
+    scores: dict[str, Any] = {
+        "model": model,
+        "classes": classes,
+        "ids": [e["id"] for e in recording.episodes],
+        "labels": labels.tolist(),
+    }
+    segment = 0 if config.segments == 1 else get_setting(config.setting).env_config().pushes
+
+    def score(episodes, kind: str) -> dict[str, Any]:
+        cfg = replace(config.classifier, features=kind, segment=segment)
+        features, owner = classifier_inputs(predictor, episodes, cfg)
+        return cross_validate(features, labels, len(classes), cfg, owner)
+
+    for kind in FEATURE_KINDS:
+        scores[kind] = score(episodes, kind)
+    # Without any fine-tuning: how far the simulation-trained estimate is from the truth.
+    estimate = np.exp(predictor_features(predictor, episodes, "estimate", segment))
+    scores["percentage_error"] = percentage_error(estimate, episodes.mass_distribution)
+    if config.segments > 1:
+        # What a lab that stopped after fewer runs would have got, from the same episodes
+        # (all runs were scored above).
+        scores["by_runs"] = [
+            {"runs": runs, "pushes": runs * segment}
+            | {
+                kind: scores[kind]["accuracy"]
+                if runs == config.segments
+                else score(first_pushes(episodes, runs * segment), kind)["accuracy"]
+                for kind in FEATURE_KINDS
+            }
+            for runs in run_counts(config.segments)
+        ]
+    return scores
+
+
+def run_counts(segments: int) -> list[int]:
+    """1, 2, 4, ... runs, and all of them."""
+    counts = [2**i for i in range(segments.bit_length()) if 2**i < segments]
+    return [*counts, segments]
+
+
+def run_sim2real(
+    config: Sim2RealConfig, out_dir: str | Path, progress: bool = True
+) -> dict[str, Any]:
+    """Both arms: record (or reuse) and score; writes summary.json and summary.md."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    results: dict[str, Any] = {"config": asdict(config), "arms": {}}
+    for arm in ARMS:
+        path = out / f"{arm}.jsonl"
+        collected = record_arm(config, arm, path, progress)
+        results["arms"][arm] = {**collected, **score_arm(config, arm, path)}
+    random, learned = results["arms"]["random"], results["arms"]["learned"]
+    if random["ids"] == learned["ids"]:  # the same chains, so a paired comparison
+        results["paired"] = {
+            kind: paired_test(
+                np.array(learned["labels"]),
+                np.array(learned[kind]["predicted"]),
+                np.array(random[kind]["predicted"]),
+            )
+            for kind in FEATURE_KINDS
+        }
+    (out / "summary.json").write_text(json.dumps(results, indent=2) + "\n")
+    (out / "summary.md").write_text(summary_markdown(results))
+    if config.segments > 1:
+        plot_accuracy_by_pushes({"": results}, out / "accuracy-by-pushes.png")
+    return results
+
+
+def paired_test(truth: np.ndarray, learned: np.ndarray, random: np.ndarray) -> dict[str, Any]:
+    """Exact McNemar test on the same episodes classified after each arm's pushes: the
+    episodes only one arm got right, and the two-sided p-value of so uneven a split if
+    neither arm were better."""
+    a, b = learned == truth, random == truth
+    only_learned, only_random = int(np.sum(a & ~b)), int(np.sum(~a & b))
+    n, k = only_learned + only_random, min(only_learned, only_random)
+    tail = sum(math.comb(n, i) for i in range(k + 1)) / 2**n if n else 1.0
+    return {
+        "only_learned": only_learned,
+        "only_random": only_random,
+        "p_value": min(1.0, 2 * tail),
+    }
+
+
+FEATURE_NAMES = {"estimate": "estimate features", "lstm": "LSTM features (paper's)"}
+
+
+def plot_accuracy_by_pushes(runs: dict[str, dict[str, Any]], path: str | Path) -> Path:
+    """Accuracy against pushes per episode for each arm, from `sim2real` results with
+    `segments` > 1, a panel per kind of feature: one thin line per named result (e.g. per
+    lab), and with several of them their mean in bold; the paper's real-robot accuracies
+    dashed."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    single = len(runs) == 1
+    fig, axes = plt.subplots(1, len(FEATURE_KINDS), figsize=(12, 4.5), sharey=True)
+    for ax, kind in zip(axes, FEATURE_KINDS, strict=True):
+        for arm, colour in zip(ARMS, ("tab:grey", "tab:blue"), strict=True):
+            curves = [r["arms"][arm]["by_runs"] for r in runs.values()]
+            pushes = [step["pushes"] for step in curves[0]]
+            if any([step["pushes"] for step in c] != pushes for c in curves):
+                raise ValueError("the results were not run with the same segments and setting")
+            acc = 100 * np.array([[step[kind] for step in c] for c in curves])
+            for name, row in zip(runs, acc, strict=True):
+                label = f"{arm} {name}".strip() if single else None
+                ax.plot(pushes, row, color=colour, lw=2 if single else 1, alpha=0.8,
+                        marker="o", ms=3, label=label)  # fmt: skip
+            if not single:
+                ax.plot(pushes, acc.mean(0), color=colour, lw=3, marker="o",
+                        label=f"{arm}, mean of {len(runs)}")  # fmt: skip
+            ax.axhline(PAPER_ACCURACY[arm], color=colour, ls="--", lw=1,
+                       label=f"paper, {arm} (real UR10, 2 pushes)")  # fmt: skip
+        ax.axhline(90, color="tab:green", ls=":", lw=1, label="goal: 90 %")
+        ax.set_xscale("log", base=2)
+        ax.set_xticks(pushes, [str(p) for p in pushes])
+        ax.set_xlabel("pushes per episode")
+        ax.set_title(FEATURE_NAMES[kind])
+        ax.set_ylim(0, 100)
+    axes[0].set_ylabel("classifier accuracy, % (chance 20 %)")
+    axes[-1].legend(fontsize=8, loc="lower right")
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def summary_markdown(results: dict[str, Any]) -> str:
+    """The accuracy table (ours beside the paper's) and each arm's confusion matrices."""
+    config = results["config"]
+    lines = [
+        "| policy | model | accuracy, estimate features | accuracy, LSTM features (paper's) "
+        "| paper (real UR10) | chance | predictor error, no fine-tuning | failed pushes |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for arm, r in results["arms"].items():
+        lines.append(
+            f"| {arm} | {r['model']} | {100 * r['estimate']['accuracy']:.1f} % "
+            f"| {100 * r['lstm']['accuracy']:.1f} % | {PAPER_ACCURACY[arm]:.1f} % "
+            f"| {100 * r['estimate']['chance']:.0f} % | {r['percentage_error']:.2f} "
+            f"| {sum(r.get('failed_pushes', {}).values())} |"
+        )
+    if config["segments"] > 1:
+        reading = {"each": "each run classified on its own, an episode's runs' log-probabilities "
+                   "added up", "average": "the runs' features averaged"}  # fmt: skip
+        lines += ["", f"{config['segments']} runs of the policy per episode; "
+                  f"{reading[config['classifier']['runs']]}."]  # fmt: skip
+    for kind, p in results.get("paired", {}).items():
+        lines += ["", f"Paired (the same chains), {FEATURE_NAMES[kind]}: {p['only_learned']} "
+                  f"episodes only the learned policy's got right, {p['only_random']} only the "
+                  f"random pushes'; exact McNemar p = {p['p_value']:.2g}."]  # fmt: skip
+    by_runs = {arm: r["by_runs"] for arm, r in results["arms"].items() if "by_runs" in r}
+    if by_runs:
+        columns = [(arm, kind) for arm in by_runs for kind in FEATURE_KINDS]
+        steps = next(iter(by_runs.values()))
+        lines += ["", "Accuracy had each episode stopped after fewer runs of the policy:", "",
+                  "| pushes per episode | "
+                  + " | ".join(f"{arm}, {FEATURE_NAMES[kind]}" for arm, kind in columns) + " |",
+                  "|---" * (len(columns) + 1) + "|"]  # fmt: skip
+        for i, step in enumerate(steps):
+            lines.append(
+                f"| {step['pushes']} ({step['runs']} run{'s' * (step['runs'] > 1)}) | "
+                + " | ".join(f"{100 * by_runs[arm][i][kind]:.1f} %" for arm, kind in columns)
+                + " |"
+            )
+    for arm, r in results["arms"].items():
+        classes = r["classes"]
+        for kind in FEATURE_KINDS:
+            lines += ["", f"Confusion, {arm} policy, {FEATURE_NAMES[kind]} (rows: truth, "
+                      "columns: predicted; masses in kg):", "",
+                      "| truth \\ predicted | " + " | ".join(classes) + " |",
+                      "|---" * (len(classes) + 1) + "|"]  # fmt: skip
+            for label, row in zip(classes, r[kind]["confusion"], strict=True):
+                lines.append(f"| {label} | " + " | ".join(str(v) for v in row) + " |")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,140 @@
+"""The paper's random-policy baselines RP and RP+ for one setting, as resumable stages.
+
+    collect (RP+'s episodes; RP uses the first half) -> train RP -> train RP+
+    -> evaluate both on 800 fresh episodes -> results/<setting>.json
+
+Every stage resumes: the collection computes only missing shards, training continues from
+its last checkpoint, and finished stages are skipped. `ship` copies the trained predictors
+into the package so that `masspush evaluate --model rp` works after install.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import asdict, replace
+from pathlib import Path
+from typing import Any
+
+from masspush.data.dataset import code_version, collect, load_dataset
+from masspush.evaluate import evaluate
+from masspush.learn.estimator import PredictorEstimator
+from masspush.learn.predictor import TrainConfig, train_predictor
+from masspush.models import ship
+from masspush.settings import get_setting
+
+# Episodes for RP and RP+ [paper Sec. 4.1]: 32k / 64k (2 links), 64k / 128k (3 links).
+EPISODES = {2: (32_000, 64_000), 3: (64_000, 128_000)}
+
+
+def baseline_paths(setting: str, pusher: str, root: str | Path = ".") -> dict[str, Path]:
+    root = Path(root)
+    return {
+        "data": root / "data" / f"{setting}-{pusher}-random",
+        "rp": root / "runs" / f"{setting}-{pusher}-rp",
+        "rp+": root / "runs" / f"{setting}-{pusher}-rp+",
+        "results": root / "results" / f"{setting}-{pusher}-baselines.json",
+    }
+
+
+def run_baselines(
+    setting: str,
+    pusher: str,
+    train: TrainConfig,
+    eval_episodes: int = 800,
+    eval_seed: int = 0,
+    root: str | Path = ".",
+    episodes: tuple[int, int] | None = None,
+) -> dict[str, Any]:
+    """Collect, train RP and RP+, evaluate; returns (and writes) the results with timings."""
+    spec = get_setting(setting)
+    n_rp, n_rp_plus = episodes or EPISODES[spec.n_links]
+    paths = baseline_paths(setting, pusher, root)
+    timings: dict[str, float] = {}
+
+    t0 = time.perf_counter()
+    collect(spec, paths["data"], episodes=n_rp_plus, pusher=pusher)
+    timings["collect_s"] = time.perf_counter() - t0
+
+    results: dict[str, Any] = {
+        "setting": setting,
+        "pusher": pusher,
+        "code_version": code_version(),
+        "train_config": asdict(train),
+        "models": {},
+    }
+    for name, n in (("rp", n_rp), ("rp+", n_rp_plus)):
+        manifest, data = load_dataset(paths["data"], limit=n)
+        meta = {
+            "setting": manifest.setting,
+            "pusher": pusher,
+            "policy": "random",
+            "dataset": str(paths["data"]),
+            "dataset_episodes": n,
+            "code_version": code_version(),
+            "baseline": name,
+        }
+        t0 = time.perf_counter()
+        _, summary = train_predictor(data, paths[name], replace(train), meta)
+        timings[f"train_{name}_s"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        estimator = PredictorEstimator.from_file(paths[name] / "predictor.pt", spec.name)
+        scores = evaluate(spec, estimator, episodes=eval_episodes, seed=eval_seed).to_dict()
+        timings[f"evaluate_{name}_s"] = time.perf_counter() - t0
+        results["models"][name] = {
+            "train_episodes": n,
+            "usable_episodes": summary["episodes"],
+            "best_step": summary["best_step"],
+            "samples_per_s": summary["samples_per_s"],
+            **scores,
+        }
+    results["timings"] = timings
+    paths["results"].parent.mkdir(parents=True, exist_ok=True)
+    paths["results"].write_text(json.dumps(results, indent=2))
+    return results
+
+
+def ship_baselines(setting: str, pusher: str, root: str | Path = ".") -> list[Path]:
+    """Ship the trained RP and RP+ predictors as the package's models for `setting`."""
+    paths = baseline_paths(setting, pusher, root)
+    return ship(setting, {name: paths[name] / "predictor.pt" for name in ("rp", "rp+")})
+
+
+# The paper's Table 1, percentage error (its metric as coded) [paper, Table 1].
+PAPER_TABLE = {
+    "2link-0.1-1": {"rp": 15.26, "rp+": 14.80, "tp": 10.39, "tp+": 6.07},
+    "2link-1-10": {"rp": 17.12, "rp+": 17.40, "tp": 14.03, "tp+": 8.26},
+    "2link-0.1-10": {"rp": 26.68, "rp+": 26.78, "tp": 21.27, "tp+": 12.03},
+    "3link-0.1-1": {"rp": 29.08, "rp+": 28.88, "tp": 26.89, "tp+": 12.02},
+    "3link-1-10": {"rp": 30.88, "rp+": 30.84, "tp": 29.75, "tp+": 15.99},
+    "3link-0.1-10": {"rp": 54.28, "rp+": 53.59, "tp": 50.49, "tp+": 23.93},
+}
+
+
+def baselines_table(pusher: str | None = None, root: str | Path = ".") -> str:
+    """Markdown: measured RP / RP+ beside the paper's, for every setting with results, each
+    with `pusher` (default: the setting's own)."""
+    lines = [
+        "| setting | pusher | paper RP | ours RP | paper RP+ | ours RP+ | constant floor "
+        "| ours RP / RP+ relative error | wall clock (train RP, RP+) |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for setting, paper in PAPER_TABLE.items():
+        used = pusher or get_setting(setting).pusher
+        path = baseline_paths(setting, used, root)["results"]
+        if not path.exists():
+            lines.append(
+                f"| {setting} | {used} | {paper['rp']:.2f} | not yet | {paper['rp+']:.2f} "
+                "| not yet | | | |"
+            )
+            continue
+        r = json.loads(path.read_text())
+        rp, rpp, t = r["models"]["rp"], r["models"]["rp+"], r["timings"]
+        lines.append(
+            f"| {setting} | {used} | {paper['rp']:.2f} | **{rp['percentage_error']:.2f}** "
+            f"| {paper['rp+']:.2f} | **{rpp['percentage_error']:.2f}** "
+            f"| {rp['constant_floor']:.2f} | {rp['relative_error']:.2f} / "
+            f"{rpp['relative_error']:.2f} | {t['train_rp_s'] / 60:.1f} min, "
+            f"{t['train_rp+_s'] / 60:.1f} min |"
+        )
+    return "\n".join(lines)

@@ -1,0 +1,371 @@
+"""Simulation throughput: the environment path, the batch path, and the raw-stepping ceiling."""
+
+from __future__ import annotations
+
+import os
+import time
+from collections import Counter
+from dataclasses import asdict, dataclass, replace
+
+import numpy as np
+from tqdm import tqdm
+
+from masspush.config import PhysicsConfig
+from masspush.env import ChainEnv
+from masspush.sim.batch import ChainBatch
+from masspush.sim.chain import sample_chain
+
+
+@dataclass(frozen=True)
+class SimBenchmark:
+    """Pushes per second through each path, and the ceiling they are measured against."""
+
+    n_links: int
+    mass_range: tuple[float, float]
+    threads: int
+    env_pushes_per_s: float
+    """One environment, one core, noise on, through `ChainEnv.step`."""
+    batch_pushes_per_s: float
+    """`ChainBatch` on all threads, model compilation included."""
+    batch_pushes_per_s_stepping: float
+    """`ChainBatch` on all threads, pushes only (chains already built)."""
+    steps_per_push: float
+    """Mean physics steps per push (push + settling) in the batch run."""
+    ceiling_steps_per_s: float
+    """Raw mj_step throughput on all threads, on post-push states (no Python per step)."""
+    ceiling_pushes_per_s: float
+    """ceiling_steps_per_s / steps_per_push."""
+    batch_fraction_of_ceiling: float
+    failure_rate: float
+    """Share of batch pushes that failed (nan / unstable / timeout)."""
+    failures: dict[str, int]
+    """Failed batch pushes by reason."""
+    pushes: int
+    """Pushes in the batch run."""
+
+    def table(self) -> str:
+        rows = [
+            ("setting", f"{self.n_links} links, masses {list(self.mass_range)} kg"),
+            ("threads", f"{self.threads}"),
+            ("environment path (1 core)", f"{self.env_pushes_per_s:8.1f} pushes/s"),
+            ("batch path, with model building", f"{self.batch_pushes_per_s:8.1f} pushes/s"),
+            ("batch path, pushes only", f"{self.batch_pushes_per_s_stepping:8.1f} pushes/s"),
+            ("steps per push (mean)", f"{self.steps_per_push:8.1f}"),
+            ("ceiling: raw mj_step, all threads", f"{self.ceiling_steps_per_s:8.0f} steps/s"),
+            ("ceiling in pushes", f"{self.ceiling_pushes_per_s:8.1f} pushes/s"),
+            ("batch (pushes only) / ceiling", f"{self.batch_fraction_of_ceiling:8.2f}"),
+            ("batch pushes", f"{self.pushes:8d}"),
+            ("failed pushes", f"{100 * self.failure_rate:8.2f} %  {self.failures}"),
+        ]
+        width = max(len(k) for k, _ in rows)
+        return "\n".join(f"{k:<{width}}  {v}" for k, v in rows)
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def bench_sim(
+    n_links: int = 2,
+    mass_range: tuple[float, float] = (0.1, 1.0),
+    env_pushes: int = 200,
+    batch_chains: int = 512,
+    pushes_per_chain: int | None = None,
+    threads: int | None = None,
+    seed: int = 0,
+    progress: bool = True,
+) -> SimBenchmark:
+    """Measure pushes per second through the environment and the batch path."""
+    threads = threads or os.cpu_count() or 1
+    physics = replace(PhysicsConfig(), n_links=n_links, mass_range=mass_range)
+    k = pushes_per_chain or n_links
+    rng = np.random.default_rng(seed)
+
+    env = ChainEnv(n_links=n_links, mass_range=mass_range)
+    env.reset(seed=seed)
+    done, t0 = 0, time.perf_counter()
+    for _ in tqdm(range(env_pushes), desc="environment path", disable=not progress):
+        _, _, terminated, _, _ = env.step(env.action_space.sample())
+        done += 1
+        if terminated:
+            env.reset()
+    env_rate = done / (time.perf_counter() - t0)
+
+    chains = [sample_chain(physics, rng) for _ in range(batch_chains)]
+    actions = rng.uniform(-1, 1, size=(k, batch_chains, 2))
+    t0 = time.perf_counter()
+    batch = ChainBatch(chains, physics, nthread=threads)
+    t_built = time.perf_counter()
+    steps, pushes, failures = 0, 0, Counter()
+    for a in tqdm(actions, desc="batch path", disable=not progress):
+        for outcome in batch.push(a):
+            if outcome is not None:
+                steps += outcome.steps
+                pushes += 1
+                if outcome.failure is not None:
+                    failures[outcome.failure] += 1
+    t_end = time.perf_counter()
+    steps_per_push = steps / max(pushes, 1)
+
+    ceiling = _raw_step_rate(chains, physics, threads, actions)
+    batch_rate_stepping = pushes / (t_end - t_built)
+    ceiling_pushes = ceiling / steps_per_push
+    return SimBenchmark(
+        n_links=n_links,
+        mass_range=tuple(mass_range),
+        threads=threads,
+        env_pushes_per_s=env_rate,
+        batch_pushes_per_s=pushes / (t_end - t0),
+        batch_pushes_per_s_stepping=batch_rate_stepping,
+        steps_per_push=steps_per_push,
+        ceiling_steps_per_s=ceiling,
+        ceiling_pushes_per_s=ceiling_pushes,
+        batch_fraction_of_ceiling=batch_rate_stepping / ceiling_pushes,
+        failure_rate=sum(failures.values()) / max(pushes, 1),
+        failures=dict(failures),
+        pushes=pushes,
+    )
+
+
+def _raw_step_rate(chains, physics: PhysicsConfig, threads: int, actions: np.ndarray) -> float:
+    """Raw mj_step throughput on all threads, on the states the batch run's pushes create.
+
+    Each round, the same chains get the same pushes; right after contact every chain is
+    stepped 200 steps in one C call (timed: no Python, no rest checks, no idle threads),
+    then rewound and let settle untimed, ready for the next round.
+    """
+    batch = ChainBatch(chains, physics, nthread=threads)
+    n_steps, stepped, elapsed = 200, 0, 0.0
+    for a in actions:
+        ids, _, controls = batch.prepare_push(a)
+        batch.deliver(ids, controls)
+        after_push = batch.batch.state[ids].copy()
+        t0 = time.perf_counter()
+        batch.batch.step(ids, nstep=n_steps)
+        elapsed += time.perf_counter() - t0
+        stepped += n_steps * ids.size
+        batch.batch.state[ids] = after_push
+        failures, _ = batch.settle(ids)
+        batch.failed[ids] = [failures[i] is not None for i in ids]
+    return stepped / elapsed
+
+
+@dataclass(frozen=True)
+class PusherBenchmark:
+    """One pusher: speed through the environment, failures, and what a mass scale does."""
+
+    pusher: str
+    n_links: int
+    pushes: int
+    pushes_per_s: float
+    """Through `ChainEnv.step` (one core, noise on): push, arm control, slide to rest."""
+    failures: dict[str, int]
+    scale_pairs: int
+    """(chain, push) pairs compared with all masses x10."""
+    scale_position_median_mm: float
+    scale_angle_median_rad: float
+    scale_angle_p90_rad: float
+    tip_speed: dict[float, float]
+    """Commanded push speed -> tip speed at contact on a light chain (arms only), m/s."""
+
+
+TRACKED_SPEEDS = (0.5, 1.0, 2.0, 3.0, 4.0, 5.0)
+
+
+def _tip_speeds(name: str, n_links: int) -> dict[float, float]:
+    """Tip speed at contact for each commanded speed, pushing a light straight chain."""
+    from masspush.sim.pushers import make_pusher
+    from masspush.sim.simulate import ChainSim
+
+    if name == "stiff":
+        return {}
+    physics = replace(PhysicsConfig(), n_links=n_links)
+    pins = {
+        "masses": [0.1] * n_links,
+        "joint_angles": [0.0] * (n_links - 1),
+        "root_pose": [0.0, 0.0, 0.0],
+    }
+    speeds = {}
+    for v in TRACKED_SPEEDS:
+        chain = sample_chain(physics, np.random.default_rng(0), pins)
+        sim = ChainSim(chain, physics, make_pusher(name))
+        sim.push(np.array([v / physics.push_speed_max, -0.5]))
+        trace = sim.pusher.trace
+        speeds[v] = trace.tip_speed[trace.contact_step] if trace.contact_step is not None else 0.0
+    return speeds
+
+
+def bench_pushers(
+    n_links: int = 2,
+    pushes: int = 60,
+    pairs: int = 40,
+    pushers: tuple[str, ...] = ("stiff", "kuka", "ur10"),
+    seed: int = 0,
+    progress: bool = True,
+) -> list[PusherBenchmark]:
+    """Pushes per second and the effect of scaling every mass by 10, for each pusher."""
+    from masspush.sim.pushers import make_pusher
+    from masspush.sim.simulate import ChainSim
+
+    results = []
+    for name in pushers:
+        env = ChainEnv(n_links=n_links, pusher=name)
+        env.reset(seed=seed)
+        env.action_space.seed(seed)
+        failures: Counter = Counter()
+        t0 = time.perf_counter()
+        for _ in tqdm(range(pushes), desc=f"{name}: pushes", disable=not progress):
+            _, _, terminated, _, info = env.step(env.action_space.sample())
+            if info["failure"]:
+                failures[info["failure"]] += 1
+            if terminated:
+                env.reset()
+        rate = pushes / (time.perf_counter() - t0)
+
+        physics = replace(PhysicsConfig(), n_links=n_links)
+        rng = np.random.default_rng(seed)
+        pusher = make_pusher(name)
+        positions, angles = [], []
+        for _ in tqdm(range(pairs), desc=f"{name}: x10 masses", disable=not progress):
+            chain = sample_chain(physics, rng)
+            action = rng.uniform(-1, 1, size=2)
+            heavy = replace(chain, masses=tuple(10 * m for m in chain.masses))
+            poses = []
+            for c in (chain, heavy):
+                sim = ChainSim(c, replace(physics, mass_range=(0.1, 10.0)), pusher)
+                poses.append(None if sim.push(action).failure else sim.config())
+            if poses[0] is None or poses[1] is None:
+                continue
+            d = poses[1] - poses[0]
+            positions.append(1000 * np.linalg.norm(d[:2]))
+            angles.append(np.abs((d[2:] + np.pi) % (2 * np.pi) - np.pi).max())
+        results.append(
+            PusherBenchmark(
+                pusher=name,
+                n_links=n_links,
+                pushes=pushes,
+                pushes_per_s=rate,
+                failures=dict(failures),
+                scale_pairs=len(angles),
+                scale_position_median_mm=float(np.median(positions)),
+                scale_angle_median_rad=float(np.median(angles)),
+                scale_angle_p90_rad=float(np.percentile(angles, 90)),
+                tip_speed=_tip_speeds(name, n_links),
+            )
+        )
+    return results
+
+
+def pushers_table(results: list[PusherBenchmark]) -> str:
+    lines = [
+        "| pusher | links | pushes/s (env, 1 core) | failed pushes | pairs | x10 masses: "
+        "position median (mm) | angle median / p90 (rad) |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r in results:
+        failed = ", ".join(f"{k} {v}" for k, v in sorted(r.failures.items())) or "none"
+        lines.append(
+            f"| {r.pusher} | {r.n_links} | {r.pushes_per_s:.1f} | {failed} (of {r.pushes}) "
+            f"| {r.scale_pairs} | {r.scale_position_median_mm:.1f} "
+            f"| {r.scale_angle_median_rad:.3f} / {r.scale_angle_p90_rad:.3f} |"
+        )
+    arms = [r for r in results if r.tip_speed]
+    if arms:
+        header = " | ".join(f"{r.pusher} tip speed at contact (m/s)" for r in arms)
+        lines += ["", f"| commanded speed (m/s) | {header} |", "|---|" + "---|" * len(arms)]
+        for v in TRACKED_SPEEDS:
+            cells = " | ".join(f"{r.tip_speed[v]:.2f}" for r in arms)
+            lines.append(f"| {v:g} | {cells} |")
+    return "\n".join(lines)
+
+
+def bench_data(setting: str, pusher: str, episodes: int, workers: int | None = None) -> dict:
+    """Episodes per second collected with every core (the collection engine, no disk)."""
+    from masspush.data.rollout import TRAIN, RandomPolicy, run_episodes
+    from masspush.settings import get_setting
+
+    spec = get_setting(setting)
+    config = spec.env_config(pusher)
+    t0 = time.perf_counter()
+    run = run_episodes(config, RandomPolicy(), np.arange(episodes), TRAIN, 12345, workers)
+    elapsed = time.perf_counter() - t0
+    return {
+        "setting": setting,
+        "pusher": pusher,
+        "episodes": episodes,
+        "episodes_per_s": episodes / elapsed,
+        "pushes_per_s": episodes * config.pushes / elapsed,
+        "failed_episodes": int((~run.ok).sum()),
+        "threads_or_workers": workers or os.cpu_count(),
+    }
+
+
+def bench_train(
+    setting: str = "2link-0.1-1", episodes: int = 4000, steps: int = 2000
+) -> list[dict]:
+    """Training samples per second: the paper's SGD (batch 16) and the fast Adam (batch 256)."""
+    import tempfile
+
+    from masspush.data.rollout import TRAIN, RandomPolicy, run_batch
+    from masspush.learn.predictor import FAST, TrainConfig, train_predictor
+    from masspush.settings import get_setting
+
+    spec = get_setting(setting)
+    data = run_batch(spec.env_config("stiff"), RandomPolicy(), np.arange(episodes), TRAIN, 0)
+    rows = []
+    for name, config in (("paper SGD, batch 16", TrainConfig()), ("fast Adam, batch 256", FAST)):
+        config = replace(config, steps=steps, eval_every=steps, checkpoint_every=steps)
+        with tempfile.TemporaryDirectory() as run:
+            _, summary = train_predictor(data, run, config, progress=False)
+        rows.append(
+            {
+                "option": name,
+                "steps": steps,
+                "batch_size": config.batch_size,
+                "samples_per_s": summary["samples_per_s"],
+                "steps_per_s": summary["samples_per_s"] / config.batch_size,
+            }
+        )
+    return rows
+
+
+def bench_ppo(
+    setting: str = "2link-1-10",
+    pusher: str | None = None,
+    algos: tuple[str, ...] = ("mlp", "recurrent"),
+    steps: int = 8192,
+    envs: tuple[int, ...] = (16,),
+    n_steps: int | None = None,
+) -> list[dict]:
+    """PPO training speed (pushes per second, simulation and updates together) for each
+    learner and number of environments, against the setting's shipped RP predictor."""
+    import tempfile
+
+    from masspush.learn.policy import PolicyConfig, train_policy
+    from masspush.models import resolve_model
+    from masspush.settings import get_setting
+
+    spec = get_setting(setting)
+    pusher = pusher or spec.pusher
+    config = spec.env_config(pusher)
+    predictor = resolve_model("rp", spec.name)
+    rows = []
+    for algo in algos:
+        for n_envs in envs:
+            policy = PolicyConfig(algo=algo, n_envs=n_envs, steps=steps, n_steps=n_steps)
+            with tempfile.TemporaryDirectory() as out:
+                t0 = time.perf_counter()
+                train_policy(config, predictor, out, policy, progress=False)
+                elapsed = time.perf_counter() - t0
+            done = max(steps, policy.rollout_steps * n_envs)  # PPO finishes its rollout
+            rows.append(
+                {
+                    "setting": setting,
+                    "pusher": pusher,
+                    "algo": algo,
+                    "envs": n_envs,
+                    "pushes": done,
+                    "seconds": round(elapsed, 1),
+                    "pushes_per_s": round(done / elapsed, 1),
+                }
+            )
+    return rows

@@ -1,0 +1,213 @@
+"""The paper's Table 1 and figures from our own runs, beside the paper's numbers.
+
+RP / RP+ come from `masspush baselines` (results/<setting>-<pusher>-baselines.json), TP /
+TP+ from `masspush train` (runs/<setting>-<pusher>-train/state.json). `reproduce` runs
+whatever is missing (both resume) and then writes:
+- results/table1.md and results/table1.csv: RP, RP+, TP, TP+ per setting, ours and the paper's;
+- results/meta-iterations.png: error after each meta-iteration (2-link and 3-link panels);
+- results/ppo-error.png: the frozen predictor's error on the policy's episodes during PPO;
+- results/recipe-times.md: wall-clock minutes per kind of stage of each finished run.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from masspush.reports.baselines import PAPER_TABLE, baseline_paths
+
+COLUMNS = ("rp", "rp+", "tp", "tp+")
+
+
+def train_dir(setting: str, pusher: str, root: str | Path = ".") -> Path:
+    return Path(root) / "runs" / f"{setting}-{pusher}-train"
+
+
+def _load(path: Path) -> dict[str, Any] | None:
+    return json.loads(path.read_text()) if path.exists() else None
+
+
+def collect_rows(settings: Sequence[str], pushers: dict[str, str], root=".") -> list[dict]:
+    """One row per setting: our four errors (None where not run yet) and the paper's."""
+    rows = []
+    for setting in settings:
+        pusher = pushers[setting]
+        row: dict[str, Any] = {"setting": setting, "pusher": pusher}
+        base = _load(baseline_paths(setting, pusher, root)["results"])
+        for name in ("rp", "rp+"):
+            row[name] = base["models"][name]["percentage_error"] if base else None
+        row["constant_floor"] = base["models"]["rp"]["constant_floor"] if base else None
+        state = _load(train_dir(setting, pusher, root) / "state.json")
+        by_stage = {h["stage"]: h for h in (state or {}).get("history", [])}
+        row["tp"] = by_stage.get("predictor-1", {}).get("percentage_error")
+        row["tp+"] = by_stage.get("predictor-final", {}).get("percentage_error")
+        if row["constant_floor"] is None and by_stage:
+            row["constant_floor"] = next(iter(by_stage.values()))["constant_floor"]
+        config = (state or {}).get("config", {})
+        row["recipe"] = (
+            f"{config['meta_iterations']} x {config['policy']['steps'] / 1000:g}k PPO"
+            if config
+            else None
+        )
+        row["train_minutes"] = (
+            round(sum(state["timings"].values()) / 60, 1) if state and row["tp+"] else None
+        )
+        for name in COLUMNS:
+            row[f"paper_{name}"] = PAPER_TABLE[setting][name]
+        rows.append(row)
+    return rows
+
+
+def _cell(value: float | None) -> str:
+    return "not yet" if value is None else f"{value:.2f}"
+
+
+def table_markdown(rows: list[dict]) -> str:
+    lines = [
+        "| setting | pusher | RP ours / paper | RP+ ours / paper | TP ours / paper "
+        "| TP+ ours / paper | constant floor | recipe | recipe wall clock |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        cells = [f"**{_cell(r[n])}** / {r[f'paper_{n}']:.2f}" for n in COLUMNS]
+        minutes = "" if r["train_minutes"] is None else f"{r['train_minutes']} min"
+        floor = "" if r["constant_floor"] is None else f"{r['constant_floor']:.2f}"
+        lines.append(
+            f"| {r['setting']} | {r['pusher']} | {' | '.join(cells)} | {floor} "
+            f"| {r['recipe'] or ''} | {minutes} |"
+        )
+    return "\n".join(lines)
+
+
+STAGE_GROUPS = {
+    "data-0": "random rollouts",
+    "predictor-0": "first predictor",
+    "policy": "PPO (all meta-iterations)",
+    "data": "policy rollouts",
+    "predictor": "fine-tuning",
+    "evaluate": "evaluations",
+    "data-final": "deterministic rollouts",
+    "predictor-final": "TP+ fine-tuning",
+}
+
+
+def stage_group(stage: str) -> str:
+    """The STAGE_GROUPS key of a recipe stage ("policy-3" -> "policy")."""
+    return stage if stage in STAGE_GROUPS else stage.split("-")[0]
+
+
+def timings_markdown(settings: Sequence[str], pushers: dict[str, str], root=".") -> str:
+    """Wall-clock minutes per kind of stage of each finished recipe run."""
+    lines = [
+        "| setting | recipe | " + " | ".join(STAGE_GROUPS.values()) + " | total |",
+        "|---|---|" + "---|" * (len(STAGE_GROUPS) + 1),
+    ]
+    for setting in settings:
+        state = _load(train_dir(setting, pushers[setting], root) / "state.json")
+        if not state or "evaluate-final" not in state["timings"]:
+            continue
+        minutes = dict.fromkeys(STAGE_GROUPS, 0.0)
+        for stage, seconds in state["timings"].items():
+            minutes[stage_group(stage)] += seconds / 60
+        config = state["config"]
+        recipe = f"{config['meta_iterations']} x {config['policy']['steps'] / 1000:g}k PPO"
+        cells = " | ".join(f"{m:.1f}" for m in minutes.values())
+        lines.append(f"| {setting} | {recipe} | {cells} | {sum(minutes.values()):.1f} |")
+    return "\n".join(lines)
+
+
+def write_csv(rows: list[dict], path: Path) -> None:
+    keys = ["setting", "pusher", *COLUMNS, *(f"paper_{n}" for n in COLUMNS)]
+    keys += ["constant_floor", "recipe", "train_minutes"]
+    with path.open("w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=keys, extrasaction="ignore")
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def plot_meta_iterations(settings, pushers, root, path: Path) -> None:
+    """Error after each meta-iteration, one line per setting, 2-link and 3-link panels."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=False)
+    for ax, links in zip(axes, ("2link", "3link"), strict=True):
+        for setting in (s for s in settings if s.startswith(links)):
+            state = _load(train_dir(setting, pushers[setting], root) / "state.json")
+            history = [
+                h
+                for h in (state or {}).get("history", [])
+                if h["stage"].removeprefix("predictor-").isdigit()
+            ]
+            if not history:
+                continue
+            x = [int(h["stage"].split("-")[1]) for h in history]
+            line = ax.plot(x, [h["percentage_error"] for h in history], "o-", label=setting)[0]
+            final = next((h for h in state["history"] if h["stage"] == "predictor-final"), None)
+            if final:
+                ax.plot(x[-1] + 0.5, final["percentage_error"], "*", ms=12, color=line.get_color())
+            ax.axhline(PAPER_TABLE[setting]["tp+"], ls=":", color=line.get_color(), lw=1)
+        ax.set(title=f"{links[0]}-link chains", xlabel="meta-iteration (0: random pushes)")
+        ax.set_ylabel("percentage error (paper's metric)")
+        ax.grid(alpha=0.3)
+        if ax.lines:
+            ax.legend(fontsize=8, title="star: TP+; dotted: paper's TP+", title_fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def plot_ppo_error(settings, pushers, root, path: Path) -> None:
+    """The frozen predictor's error on the policy's own episodes during PPO training."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for setting in settings:
+        run = train_dir(setting, pushers[setting], root)
+        xs, ys, offset = [], [], 0
+        for policy_dir in sorted(run.glob("policy-*"), key=lambda p: int(p.name.split("-")[1])):
+            rows = _read_progress(policy_dir / "progress.csv")
+            xs += [offset + t for t, _ in rows]
+            ys += [e for _, e in rows]
+            offset += rows[-1][0] if rows else 0
+        if xs:
+            ax.plot(xs, ys, label=setting, lw=1)
+    ax.set(xlabel="PPO steps (pushes), all meta-iterations", ylabel="percentage error")
+    ax.set_title("Predictor error on the policy's episodes during PPO")
+    ax.grid(alpha=0.3)
+    if ax.lines:
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def _read_progress(path: Path) -> list[tuple[int, float]]:
+    if not path.exists():
+        return []
+    with path.open() as f:
+        rows = {int(r["timesteps"]): float(r["percentage_error"]) for r in csv.DictReader(f)}
+    return sorted(rows.items())  # a resumed run may repeat a row: keep the last
+
+
+def write_outputs(settings, pushers, root=".", out_dir: str | Path = "results") -> list[Path]:
+    out = Path(root) / out_dir
+    out.mkdir(parents=True, exist_ok=True)
+    rows = collect_rows(settings, pushers, root)
+    paths = [out / "table1.md", out / "table1.csv", out / "meta-iterations.png"]
+    paths[0].write_text(table_markdown(rows) + "\n")
+    write_csv(rows, paths[1])
+    plot_meta_iterations(settings, pushers, root, paths[2])
+    paths.append(out / "ppo-error.png")
+    plot_ppo_error(settings, pushers, root, paths[3])
+    paths.append(out / "recipe-times.md")
+    paths[4].write_text(timings_markdown(settings, pushers, root) + "\n")
+    return paths

@@ -1,0 +1,57 @@
+"""Pushers: what physically delivers a push, and the registry of the known ones.
+
+A pusher implements `base.Pusher`; its `base.PusherKind` states what it can do (batch path,
+arm scene). A new pusher is a module beside these and one entry in `PUSHER_KINDS`.
+"""
+
+from __future__ import annotations
+
+from masspush.sim.pushers.arm import ArmPusher
+from masspush.sim.pushers.base import Pusher, PusherKind, StepHook
+from masspush.sim.pushers.stiff import StiffPusher, park
+
+PUSHER_KINDS: dict[str, PusherKind] = {
+    kind.name: kind
+    for kind in (
+        PusherKind("stiff", "stiff pusher", StiffPusher, batch=True, arm=False,
+                   camera_distance=0.9),
+        PusherKind("kuka", "KUKA KR 5", lambda: ArmPusher("kuka"), batch=False, arm=True,
+                   camera_distance=1.6),
+        PusherKind("ur10", "UR10", lambda: ArmPusher("ur10"), batch=False, arm=True,
+                   camera_distance=2.2),
+    )
+}
+
+PUSHERS = tuple(PUSHER_KINDS)
+"""Pusher names accepted by the environment and the CLI."""
+
+IDEAL_PUSHER = "stiff"
+"""The idealised pusher: the default, and the stand-in where an arm's pushes are approximated."""
+
+
+def pusher_kind(name: str) -> PusherKind:
+    """The pusher kind called `name`, or a ValueError listing the known ones."""
+    try:
+        return PUSHER_KINDS[name]
+    except (KeyError, TypeError):
+        raise ValueError(f"unknown pusher {name!r}; known pushers: {list(PUSHERS)}") from None
+
+
+def make_pusher(name: str) -> Pusher:
+    """A new pusher called `name`, or a ValueError listing the known ones."""
+    return pusher_kind(name).make()
+
+
+__all__ = [
+    "IDEAL_PUSHER",
+    "PUSHERS",
+    "PUSHER_KINDS",
+    "ArmPusher",
+    "Pusher",
+    "PusherKind",
+    "StepHook",
+    "StiffPusher",
+    "make_pusher",
+    "park",
+    "pusher_kind",
+]

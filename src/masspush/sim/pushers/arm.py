@@ -1,0 +1,448 @@
+"""Robot-arm pushers: the KUKA KR 5 sixx R650 and the UR10 under operational-space control.
+
+One push, as in the paper (Sec. 3.4) and the authors' setup:
+1. The arm's base moves next to the chosen link, facing the push direction, at a fixed
+   distance behind the contact point (the paper's base follows the object).
+2. The arm is placed, by inverse kinematics, with its tip a short standoff before the
+   contact point, oriented perpendicular to the pushed face, at rest. This replaces the
+   slow free-space approach, which carries no information, with its end state.
+3. Velocity phase: the target moves towards the face at the commanded speed and the OSC
+   law tracks it; the standoff (3 / kd of travel, three time constants of the velocity
+   loop) lets the tip reach that speed before it touches. From the first contact the
+   target velocity is held for `push_hold_time` (the paper's 10 steps).
+4. Retract: back towards the standoff point with zero target velocity, for 30 ms.
+5. The base is parked far away; the chain slides to rest with no arm control to pay for.
+
+A push in which any arm geometry other than the end-effector touches the chain is an
+'arm_contact' failure; a pose the arm cannot reach is 'unreachable'.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from masspush.config import PhysicsConfig
+from masspush.sim.actions import PushGeometry
+from masspush.sim.pushers.base import StepHook
+from masspush.sim.pushers.osc import (
+    KD,
+    KP,
+    TASK_DAMPING,
+    desired_acceleration,
+    rotation_error,
+    scale_to_limits,
+)
+
+ASSETS = Path(__file__).parent / "assets"
+ARM_PARK = np.array([-1000.0, -1000.0, 0.0])
+"""Where an arm's base waits between pushes: far from any chain."""
+RETRACT_TIME = 0.030
+"""Seconds of controlled retraction after the hold, before the arm is parked [ours]."""
+STANDOFF_TIME = 0.030
+"""The tip starts this many seconds of travel (at the commanded speed) before the face, up
+to the arm's `max_standoff`, so that the torque-limited arm is near its target speed at
+contact [ours]."""
+
+
+@dataclass(frozen=True)
+class ArmSpec:
+    """An arm model and how it is placed for a push."""
+
+    name: str
+    xml: str
+    """Model file in masspush/sim/pushers/assets (sources of its numbers are in the file)."""
+    base_distance: float
+    """Horizontal distance from the base to the contact point, m."""
+    max_standoff: float
+    """Longest run-up the arm can start from with its wrist above the table, m."""
+    tool_pitch: float
+    """How far the tip site's x-axis points below horizontal while pushing, rad. The KUKA's
+    tool points 75 degrees down so that its wrist stays well above a 3 cm chain (a ball
+    touches the same point at any tool angle); the UR10's dowel tilt is in its model."""
+
+
+# Base distances and pitches found by a reachability scan of the models (docs/arms.md):
+# the KR 5's elbow (A3, +165 degrees) cannot fold far enough to push closer than ~0.55 m
+# with its wrist above the table.
+ARMS = {
+    "kuka": ArmSpec(
+        "kuka",
+        "kuka_kr5_sixx_r650.xml",
+        base_distance=0.60,
+        max_standoff=0.08,
+        tool_pitch=math.radians(75),
+    ),
+    "ur10": ArmSpec("ur10", "ur10.xml", base_distance=0.75, max_standoff=0.15, tool_pitch=0.0),
+}
+MIN_LINK_HEIGHT = 0.06
+"""Inverse kinematics prefers poses whose arm links all stay this far above the table, m."""
+
+
+@dataclass
+class PushTrace:
+    """What the arm did in its last push (for tests, plots and diagnostics)."""
+
+    tip_speed: list[float] = field(default_factory=list)
+    """Tip speed along the push direction at each step of the velocity phase, m/s."""
+    contact_step: int | None = None
+    """Step of the velocity phase at which the tip first touched the chain."""
+    max_torque_ratio: float = 0.0
+    """Largest |joint torque| / torque limit seen (1.0 means a limit was reached)."""
+    ik_error: float = 0.0
+    """Tip position error of the inverse kinematics at the start, m."""
+
+
+@dataclass(frozen=True)
+class _Handles:
+    qadr: np.ndarray
+    dadr: np.ndarray
+    act: np.ndarray
+    site: int
+    mocap: int
+    ee: int
+    arm_geoms: np.ndarray
+    chain_geoms: np.ndarray
+    is_arm: np.ndarray
+    """(ngeom,) bool: the arm's geoms other than the end-effector (a lookup per contact is
+    several times faster than `np.isin` at every control step)."""
+    is_chain: np.ndarray
+    links: np.ndarray
+    low: np.ndarray
+    high: np.ndarray
+    torque_limit: np.ndarray
+    dofs: slice
+    """The arm's degrees of freedom, consecutive in every scene built here."""
+    jac: np.ndarray
+    """(6, nv) scratch: the tip's Jacobian (translation rows, then rotation rows)."""
+    minv_jt: np.ndarray
+    """(6, nv) scratch: the rows of M^-1 J^T."""
+
+
+class ArmPusher:
+    """Pushes with a simulated robot arm under the paper's operational-space control."""
+
+    def __init__(self, arm: str, kp: float = KP, kd: float = KD):
+        if arm not in ARMS:
+            raise ValueError(f"unknown arm {arm!r}; known arms: {sorted(ARMS)}")
+        self.arm = ARMS[arm]
+        self.name = arm
+        self.kp, self.kd = kp, kd
+        self.prefix = f"{arm}/"
+        self.trace = PushTrace()
+        self._on_step: StepHook | None = None
+        self._model: mujoco.MjModel | None = None  # the model the handles belong to
+        self._handles: _Handles | None = None
+        self._reference_q: np.ndarray | None = None
+
+    # --- scene ------------------------------------------------------------------------
+    def add_to(self, spec: mujoco.MjSpec, physics: PhysicsConfig) -> None:
+        arm = mujoco.MjSpec.from_file(str(ASSETS / self.arm.xml))
+        frame = spec.worldbody.add_frame(pos=ARM_PARK.tolist())
+        frame.attach_body(arm.body("base"), self.prefix, "")
+
+    def _h(self, model: mujoco.MjModel) -> _Handles:
+        if self._model is not model:
+            p = self.prefix
+            joints = [model.joint(f"{p}joint{i}") for i in range(1, 7)]
+            base = model.body(f"{p}base").id
+            arm_bodies = {b for b in range(model.nbody) if _in_subtree(model, b, base)}
+            ee = model.geom(f"{p}ee").id
+            arm_geoms = [g for g in range(model.ngeom) if model.geom_bodyid[g] in arm_bodies]
+            chain_geoms = [g for g in range(model.ngeom) if model.geom(g).name.startswith("box")]
+            self._model = model
+            is_arm, is_chain = np.zeros(model.ngeom, bool), np.zeros(model.ngeom, bool)
+            is_arm[[g for g in arm_geoms if g != ee]] = True
+            is_chain[chain_geoms] = True
+            dadr = np.array([j.dofadr[0] for j in joints])
+            if not np.array_equal(dadr, np.arange(dadr[0], dadr[0] + 6)):
+                raise ValueError(f"the arm's joints are not consecutive dofs: {dadr}")
+            self._handles = _Handles(
+                qadr=np.array([j.qposadr[0] for j in joints]),
+                dadr=dadr,
+                act=np.array([model.actuator(f"{p}joint{i}").id for i in range(1, 7)]),
+                site=model.site(f"{p}tip").id,
+                mocap=int(model.body_mocapid[base]),
+                ee=ee,
+                arm_geoms=np.array([g for g in arm_geoms if g != ee]),
+                chain_geoms=np.array(chain_geoms),
+                is_arm=is_arm,
+                is_chain=is_chain,
+                links=np.array(
+                    [j.bodyid[0] for j in joints[2:]]
+                    + [model.site_bodyid[model.site(f"{p}tip").id]]
+                ),
+                low=np.array([j.range[0] for j in joints]),
+                high=np.array([j.range[1] for j in joints]),
+                torque_limit=np.array([model.jnt_actfrcrange[j.id, 1] for j in joints]),
+                dofs=slice(int(dadr[0]), int(dadr[0]) + 6),
+                jac=np.zeros((6, model.nv)),
+                minv_jt=np.zeros((6, model.nv)),
+            )
+        assert self._handles is not None
+        return self._handles
+
+    # --- one push ---------------------------------------------------------------------
+    def deliver(
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        push: PushGeometry,
+        physics: PhysicsConfig,
+        on_step: StepHook | None = None,
+    ) -> str | None:
+        self.trace = PushTrace()
+        self._on_step = on_step
+        if push.speed <= 0.0:
+            return None  # a zero-speed push touches nothing
+        h = self._h(model)
+        direction = np.array([push.direction[0], push.direction[1], 0.0])
+        target_r = tool_rotation(direction, self.arm.tool_pitch)
+        contact = np.array([push.contact[0], push.contact[1], physics.link_height / 2])
+        tip_radius = float(model.geom_size[h.ee][0])
+        touch = contact - direction * (tip_radius + physics.pusher_clearance)
+        run_up = min(push.speed * STANDOFF_TIME, self.arm.max_standoff)
+        standoff = touch - direction * run_up
+
+        # 1. Base next to the link, facing the push direction, on the table.
+        yaw = math.atan2(direction[1], direction[0])
+        self.place_base(model, data, contact - direction * self.arm.base_distance, yaw)
+        # 2. Tip at the standoff point, at rest.
+        q, error = self._ik(model, data, h, standoff, target_r, touch - 0.03 * direction)
+        self.trace.ik_error = error
+        if error > 2e-3:
+            self.park(model, data)
+            return "unreachable"
+        data.qpos[h.qadr] = q
+        data.qvel[h.dadr] = 0.0
+
+        # 3. Velocity phase, then the hold from first contact.
+        dt = model.opt.timestep
+        hold = physics.push_steps[1]
+        # A torque-limited arm may be slower than commanded: allow it twice the time.
+        to_face = run_up + physics.pusher_clearance
+        deadline = math.ceil((2 * to_face / push.speed + 0.05) / dt)
+        velocity = np.concatenate([direction * push.speed, np.zeros(3)])
+        failure = None
+        step = 0
+        while True:
+            # Along the push: velocity control only (the paper's "hold the target velocity");
+            # across it: the PD rule keeps the tip on the line through the contact point.
+            tip_velocity, touching, arm_touch = self._control(
+                model, data, h, standoff, target_r, velocity, free_axis=direction
+            )
+            self.trace.tip_speed.append(float(tip_velocity[:3] @ direction))
+            if arm_touch:
+                failure = "arm_contact"
+                break
+            if touching and self.trace.contact_step is None:
+                self.trace.contact_step = step
+            step += 1
+            if self.trace.contact_step is not None and step >= self.trace.contact_step + hold:
+                break
+            if self.trace.contact_step is None and step >= deadline:
+                failure = "unreachable"
+                break
+        # 4. Retract towards the standoff point, no target velocity.
+        if failure is None:
+            for _ in range(round(RETRACT_TIME / dt)):
+                _, _, arm_touch = self._control(model, data, h, standoff, target_r, np.zeros(6))
+                if arm_touch:
+                    failure = "arm_contact"
+                    break
+        # 5. Out of the way.
+        self.park(model, data)
+        return failure
+
+    def place_base(self, model: mujoco.MjModel, data: mujoco.MjData, pos, yaw: float) -> None:
+        """Put the arm's base at `pos` on the table, facing `yaw`."""
+        h = self._h(model)
+        data.mocap_pos[h.mocap] = [pos[0], pos[1], 0.0]
+        data.mocap_quat[h.mocap] = [math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)]
+
+    def move_to(
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        target: np.ndarray,
+        target_r: np.ndarray,
+        duration: float,
+    ) -> tuple[float, float]:
+        """Drive the tip to a pose under OSC with zero target velocity for `duration` s;
+        return the remaining (position error in m, orientation error in rad)."""
+        h = self._h(model)
+        for _ in range(round(duration / model.opt.timestep)):
+            self._control(model, data, h, target, target_r, np.zeros(6))
+        mujoco.mj_forward(model, data)
+        pos_err = float(np.linalg.norm(target - data.site_xpos[h.site]))
+        rot_err = float(
+            np.linalg.norm(rotation_error(target_r, data.site_xmat[h.site].reshape(3, 3)))
+        )
+        return pos_err, rot_err
+
+    def park(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """Move the base far from the chain and stop the arm there."""
+        h = self._h(model)
+        data.mocap_pos[h.mocap] = ARM_PARK
+        data.mocap_quat[h.mocap] = [1.0, 0.0, 0.0, 0.0]
+        data.qvel[h.dadr] = 0.0
+        data.ctrl[h.act] = 0.0
+
+    # --- control ----------------------------------------------------------------------
+    def _control(
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        h: _Handles,
+        x_des: np.ndarray,
+        r_des: np.ndarray,
+        v_des: np.ndarray,
+        free_axis: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, bool, bool]:
+        """One OSC step: (tip velocity, tip touches chain, other arm part touches chain).
+
+        With `free_axis`, position errors along that axis are ignored (velocity control)."""
+        mujoco.mj_step1(model, data)  # positions, velocities, contacts, mass matrix: now
+        tau, tip_velocity = self._torque(model, data, h, x_des, r_des, v_des, free_axis)
+        headroom = h.torque_limit - np.abs(data.qfrc_gravcomp[h.dofs])
+        data.ctrl[h.act] = scale_to_limits(tau, headroom)
+        touching, arm_touch = self._contacts(data, h)
+        mujoco.mj_step2(model, data)
+        if self._on_step is not None:
+            self._on_step()
+        ratio = float((np.abs(data.qfrc_actuator[h.dofs]) / h.torque_limit).max())
+        if ratio > self.trace.max_torque_ratio:
+            self.trace.max_torque_ratio = ratio
+        return tip_velocity, touching, arm_touch
+
+    def _torque(
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        h: _Handles,
+        x_des: np.ndarray,
+        r_des: np.ndarray,
+        v_des: np.ndarray,
+        free_axis: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The OSC law's joint torques (before the limits) and the tip velocity, for the
+        state after `mj_step1`. `osc.osc_torque`'s law, computed with what the step already
+        has: M^-1 J^T from MuJoCo's factorised mass matrix (`mj_solveM`), one linear solve
+        for M_x xdd, and no temporaries that the law runs at every step would allocate
+        (the arm's pushes spend most of their time here; tests/test_arm.py holds it to the
+        reference law)."""
+        jac_full = h.jac
+        mujoco.mj_jacSite(model, data, jac_full[:3], jac_full[3:], h.site)
+        jac = jac_full[:, h.dofs]
+        tip_velocity = jac @ data.qvel[h.dofs]
+        # The arm is a tree of its own: J is zero off its dofs and M block-diagonal, so
+        # J M^-1 J^T needs only the arm's columns of M^-1 J^T.
+        mujoco.mj_solveM(model, data, h.minv_jt, jac_full)
+        inv_lambda = jac @ h.minv_jt[:, h.dofs].T
+        inv_lambda.flat[::7] += TASK_DAMPING
+        pos_err = x_des - data.site_xpos[h.site]
+        if free_axis is not None:
+            pos_err = pos_err - (pos_err @ free_axis) * free_axis
+        xdd = desired_acceleration(
+            pos_err,
+            rotation_error(r_des, data.site_xmat[h.site].reshape(3, 3)),
+            tip_velocity,
+            v_des,
+            self.kp,
+            self.kd,
+        )
+        # inv_lambda is symmetric positive definite: MuJoCo's Cholesky costs a fraction of
+        # NumPy's general solver's call overhead at this size.
+        mujoco.mju_cholFactor(inv_lambda, 0.0)
+        task_force = np.empty(6)
+        mujoco.mju_cholSolve(task_force, inv_lambda, xdd)
+        return jac.T @ task_force, tip_velocity
+
+    @staticmethod
+    def _jacobian(model: mujoco.MjModel, data: mujoco.MjData, h: _Handles) -> np.ndarray:
+        jacp = np.zeros((3, model.nv))
+        jacr = np.zeros((3, model.nv))
+        mujoco.mj_jacSite(model, data, jacp, jacr, h.site)
+        return np.vstack([jacp[:, h.dadr], jacr[:, h.dadr]])
+
+    @staticmethod
+    def _contacts(data: mujoco.MjData, h: _Handles) -> tuple[bool, bool]:
+        if data.ncon == 0:
+            return False, False
+        pairs = data.contact.geom[: data.ncon]
+        chain = h.is_chain[pairs]
+        with_chain = chain[:, 0] | chain[:, 1]
+        ee = (pairs == h.ee).any(axis=1) & with_chain
+        arm = h.is_arm[pairs].any(axis=1) & with_chain
+        return bool(ee.any()), bool(arm.any())
+
+    def _ik(
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        h: _Handles,
+        target: np.ndarray,
+        target_r: np.ndarray,
+        reference_target: np.ndarray,
+    ) -> tuple[np.ndarray, float]:
+        """Joint angles that put the tip at `target` with orientation `target_r`, and the
+        remaining error (position in m plus 0.1 m per radian of orientation).
+
+        `reference_target` is the same pose 3 cm before the face: the first call solves it
+        carefully once, and every later solve starts from that solution."""
+        if self._reference_q is None:
+            # Every push asks for nearly the same pose relative to the base, so one careful
+            # solution from several seeds, elbow above the table, starts all later ones.
+            seeds = [np.zeros(6), *np.random.default_rng(0).uniform(h.low / 2, h.high / 2, (24, 6))]
+            solutions = [
+                self._solve_ik(model, data, h, reference_target, target_r, s, 200) for s in seeds
+            ]
+            self._reference_q = min(solutions, key=lambda r: r[1] + (r[2] < MIN_LINK_HEIGHT))[0]
+        q, error, _ = self._solve_ik(model, data, h, target, target_r, self._reference_q, 150)
+        return q, error
+
+    def _solve_ik(self, model, data, h, target, target_r, q0, iterations):
+        """Damped least squares with steps of at most 0.2 rad: (q, error, lowest link height)."""
+        q = q0.copy()
+        saved = data.qpos[h.qadr].copy()
+        for _ in range(iterations + 1):
+            data.qpos[h.qadr] = q
+            mujoco.mj_kinematics(model, data)
+            mujoco.mj_comPos(model, data)
+            err = np.concatenate(
+                [
+                    target - data.site_xpos[h.site],
+                    rotation_error(target_r, data.site_xmat[h.site].reshape(3, 3)),
+                ]
+            )
+            error = float(np.linalg.norm(err[:3]) + 0.1 * np.linalg.norm(err[3:]))
+            if error < 1e-5:
+                break
+            jac = self._jacobian(model, data, h)
+            dq = jac.T @ np.linalg.solve(jac @ jac.T + 1e-4 * np.eye(6), err)
+            q = np.clip(q + dq * min(1.0, 0.2 / np.abs(dq).max()), h.low, h.high)
+        lowest = float(data.xpos[h.links, 2].min())
+        data.qpos[h.qadr] = saved
+        return q, error, lowest
+
+
+def tool_rotation(direction: np.ndarray, pitch: float) -> np.ndarray:
+    """Target orientation of the tip site: x along the push direction tilted down by pitch,
+    y horizontal, z completing the frame (up when pitch is 0)."""
+    up = np.array([0.0, 0.0, 1.0])
+    lateral = np.cross(up, direction)
+    x = math.cos(pitch) * direction - math.sin(pitch) * up
+    z = np.cross(x, lateral)
+    return np.column_stack([x, lateral, z])
+
+
+def _in_subtree(model: mujoco.MjModel, body: int, root: int) -> bool:
+    while body > 0:
+        if body == root:
+            return True
+        body = int(model.body_parentid[body])
+    return False

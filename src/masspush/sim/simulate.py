@@ -1,0 +1,170 @@
+"""One chain, one push at a time: push, then simulate until the chain is at rest.
+
+This is the reference path; `masspush.sim.batch` runs many chains at once through MuJoCo's
+multi-threaded batch and must give the same rest poses (tests check it).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from masspush.config import PhysicsConfig
+from masspush.sim.actions import PushSpec, action_to_push, push_geometry
+from masspush.sim.chain import INITIAL_KEY, ChainLayout, ChainParams, compile_scene
+from masspush.sim.pushers import Pusher, StepHook, StiffPusher
+
+FAILURES = ("nan", "unstable", "timeout", "arm_contact", "unreachable")
+"""Why a push can fail: the simulation diverged (NaN/inf); the chain flew off the table,
+reached an absurd speed or came to rest tipped on its side; it still moved at the cap; an
+arm part other than the end-effector touched the chain; the arm could not reach the push."""
+
+# Codes of `classify`, vectorised over many simulations.
+OK, NAN, UNSTABLE = 0, 1, 2
+
+
+@dataclass(frozen=True)
+class PushOutcome:
+    """What happened in one push."""
+
+    push: PushSpec
+    """The push that was executed (after the action was mapped)."""
+    failure: str | None
+    """None, or one of FAILURES."""
+    settle_time: float
+    """Simulated time from the end of the push until rest (or failure), s."""
+    steps: int
+    """Physics steps the push and the settling took."""
+
+
+def classify(
+    qpos: np.ndarray, qvel: np.ndarray, layout: ChainLayout, physics: PhysicsConfig
+) -> tuple[np.ndarray, np.ndarray]:
+    """(code, at_rest) for (nsim, nq) / (nsim, nv) states: code is OK, NAN or UNSTABLE.
+
+    Links rock and bounce during impacts, so tilt is judged only at rest: a chain that
+    comes to rest on its side is UNSTABLE. While moving, only divergence, an absurd speed
+    or leaving the table (lift above `max_lift`) count.
+    """
+    qpos = np.atleast_2d(qpos)
+    qvel = np.atleast_2d(qvel)
+    chain_q = qpos[:, : layout.nq]
+    chain_v = qvel[:, : layout.nv]
+    finite = np.isfinite(qpos).all(axis=1) & np.isfinite(qvel).all(axis=1)
+    with np.errstate(invalid="ignore"):
+        speed = np.abs(chain_v).max(axis=1)
+        r = layout.root_qpos
+        x, y = chain_q[:, r + 4], chain_q[:, r + 5]
+        # The z-axis of the root link has vertical component 1 - 2 (x^2 + y^2).
+        tipped = 1 - 2 * (x * x + y * y) < math.cos(physics.max_tilt)
+        lift = np.abs(chain_q[:, r + 2] - physics.link_height / 2)
+        at_rest = speed < physics.rest_velocity
+        unstable = (speed > physics.max_velocity) | (lift > physics.max_lift) | (at_rest & tipped)
+    code = np.where(~finite, NAN, np.where(unstable, UNSTABLE, OK))
+    return code, at_rest & (code == OK)
+
+
+def failure_name(code: int) -> str | None:
+    return {OK: None, NAN: "nan", UNSTABLE: "unstable"}[int(code)]
+
+
+def settle_cap_steps(physics: PhysicsConfig) -> int:
+    """Settling steps before a 'timeout', rounded up to whole rest checks."""
+    k = physics.rest_check_steps
+    return k * math.ceil(physics.settle_time_cap / physics.timestep / k)
+
+
+class ChainSim:
+    """One chain in a MuJoCo scene with a pusher, always observed at rest."""
+
+    def __init__(
+        self,
+        chain: ChainParams,
+        physics: PhysicsConfig,
+        pusher: Pusher | None = None,
+        adjust: Callable[[mujoco.MjModel], None] | None = None,
+    ):
+        """`adjust`, if given, edits the compiled model before anything is simulated (the
+        sim-to-real target world changes solver and contact parameters this way)."""
+        if chain.n_links != physics.n_links:
+            raise ValueError(f"chain has {chain.n_links} links, physics config {physics.n_links}")
+        self.chain = chain
+        self.physics = physics
+        self.pusher = pusher or StiffPusher()
+        self.on_step: StepHook | None = None
+        """Called after every physics step, if set (to record video)."""
+        self.phase = "settle"
+        """"push" while the pusher acts, "settle" while the chain slides to rest."""
+        self.model = compile_scene(chain, physics, self.pusher.add_to)
+        if adjust is not None:
+            adjust(self.model)
+        self.data = mujoco.MjData(self.model)
+        self.layout = ChainLayout.of(self.model, chain.n_links)
+        mujoco.mj_resetDataKeyframe(self.model, self.data, INITIAL_KEY)
+        mujoco.mj_forward(self.model, self.data)
+        # The chain is built resting exactly on the table; let the soft contacts take
+        # its weight so that even q_0 is a true rest pose.
+        self.initial_failure, _ = self.settle()
+
+    def config(self) -> np.ndarray:
+        """The chain's current configuration (x, y, yaw, joint angles), noiseless."""
+        return self.layout.config(self.data.qpos)
+
+    def push(self, action: np.ndarray, settle: bool = True) -> PushOutcome:
+        """Execute the push an action stands for and simulate until rest (with `settle`
+        False, only until the pusher is done: the chain may still be sliding).
+
+        After a 'nan' failure the state is restored to before the push, so the
+        configuration stays finite; other failures keep the state they ended in.
+        """
+        spec = action_to_push(action, self.chain.lengths, self.physics)
+        geometry = push_geometry(spec, self.config(), self.chain.lengths, self.physics)
+        saved = self._state()
+        start_time = self.data.time
+        self.phase = "push"
+        failure = self.pusher.deliver(self.model, self.data, geometry, self.physics, self.on_step)
+        self.phase = "settle"
+        push_steps = round((self.data.time - start_time) / self.physics.timestep)
+        settle_steps = 0
+        if failure is None and settle:
+            failure, settle_steps = self.settle()
+        if failure == "nan":
+            self._restore(saved)
+        return PushOutcome(
+            push=spec,
+            failure=failure,
+            settle_time=settle_steps * self.physics.timestep,
+            steps=push_steps + settle_steps,
+        )
+
+    def settle(self) -> tuple[str | None, int]:
+        """Step until the chain is at rest or fails: (failure or None, steps taken)."""
+        k = self.physics.rest_check_steps
+        cap = settle_cap_steps(self.physics)
+        steps = 0
+        while steps < cap:
+            for _ in range(k):
+                mujoco.mj_step(self.model, self.data)
+                if self.on_step is not None:
+                    self.on_step()
+            steps += k
+            code, at_rest = classify(self.data.qpos, self.data.qvel, self.layout, self.physics)
+            if code[0] != OK:
+                return failure_name(code[0]), steps
+            if at_rest[0]:
+                return None, steps
+        return "timeout", steps
+
+    def _state(self) -> np.ndarray:
+        spec = mujoco.mjtState.mjSTATE_INTEGRATION
+        state = np.empty(mujoco.mj_stateSize(self.model, spec))
+        mujoco.mj_getState(self.model, self.data, state, spec)
+        return state
+
+    def _restore(self, state: np.ndarray) -> None:
+        mujoco.mj_setState(self.model, self.data, state, mujoco.mjtState.mjSTATE_INTEGRATION)
+        mujoco.mj_forward(self.model, self.data)
