@@ -44,7 +44,7 @@ def main() -> None:
     setting = get_setting(args.setting)
     env = ChainEnv.from_config(setting.env_config())
     pushes = setting.env_config().pushes
-    learned = LearnedPosterior.load(args.model, setting.name)
+    learned = LearnedPosterior.load(resolve_model(args.model, setting.name), setting.name)
     filt = filter_for(setting, seed=args.seed)
     policy = InfoSeekingPolicy(filt, args.seed)
     powers = [0.0, *args.powers]

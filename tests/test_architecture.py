@@ -20,19 +20,46 @@ FORBIDDEN = {
     "masspush.config": ("masspush.",),
     "masspush.metrics": ("masspush.",),
     "masspush.sim": (
-        "torch", "stable_baselines3", "sb3_contrib", "masspush.env", "masspush.settings",
-        "masspush.data", "masspush.learn", "masspush.bayes", "masspush.real",
-        "masspush.reports", "masspush.cli", "masspush.evaluate", "masspush.models",
+        "torch",
+        "stable_baselines3",
+        "sb3_contrib",
+        "masspush.env",
+        "masspush.settings",
+        "masspush.data",
+        "masspush.learn",
+        "masspush.bayes",
+        "masspush.real",
+        "masspush.reports",
+        "masspush.cli",
+        "masspush.evaluate",
+        "masspush.models",
     ),
     "masspush.data": (
-        "torch", "masspush.learn", "masspush.bayes", "masspush.real", "masspush.reports",
-        "masspush.cli", "masspush.evaluate", "masspush.models",
+        "torch",
+        "masspush.learn",
+        "masspush.bayes",
+        "masspush.real",
+        "masspush.reports",
+        "masspush.cli",
+        "masspush.evaluate",
+        "masspush.models",
     ),
-    "masspush.learn": ("masspush.real", "masspush.bayes", "masspush.reports", "masspush.cli",
-                       "masspush.models"),
+    "masspush.learn": (
+        "masspush.real",
+        "masspush.bayes",
+        "masspush.reports",
+        "masspush.cli",
+        "masspush.models",
+    ),
     "masspush.bayes": ("masspush.real", "masspush.reports", "masspush.cli", "masspush.models"),
-    "masspush.evaluate": ("masspush.learn", "masspush.bayes", "masspush.real",
-                          "masspush.reports", "masspush.cli", "torch"),
+    "masspush.evaluate": (
+        "masspush.learn",
+        "masspush.bayes",
+        "masspush.real",
+        "masspush.reports",
+        "masspush.cli",
+        "torch",
+    ),
     "masspush.real": ("masspush.reports", "masspush.cli"),
     "masspush.reports": ("masspush.cli",),
 }
@@ -54,8 +81,10 @@ def imports_of(path: Path) -> set[str]:
         elif isinstance(node, ast.ImportFrom):
             base = node.module or ""
             if node.level:
-                base = ".".join(package.split(".")[: len(package.split(".")) - node.level + 1]
-                                + ([base] if base else []))
+                base = ".".join(
+                    package.split(".")[: len(package.split(".")) - node.level + 1]
+                    + ([base] if base else [])
+                )
             found.add(base)
             # `from masspush.sim import chain` imports the module masspush.sim.chain.
             found.update(f"{base}.{alias.name}" for alias in node.names)

@@ -1,9 +1,10 @@
 import json
 
-import masspush.evaluate as evaluate_module
+import masspush.models as models_module
 import masspush.reports.baselines as baselines
-from masspush.evaluate import evaluate
+from masspush.evaluate import EvaluateConfig
 from masspush.learn.predictor import TrainConfig
+from masspush.models import evaluate_model
 
 
 def test_baselines_recipe_end_to_end_and_shipping(tmp_path, monkeypatch):
@@ -21,10 +22,9 @@ def test_baselines_recipe_end_to_end_and_shipping(tmp_path, monkeypatch):
         assert {"percentage_error", "constant_floor", "failures"} <= set(model)
     assert set(results["timings"]) >= {"collect_s", "train_rp_s", "train_rp+_s"}
     # Shipping puts the models where `--model rp` finds them.
-    monkeypatch.setattr(baselines, "SHIPPED_DIR", tmp_path / "models")
-    monkeypatch.setattr(evaluate_module, "SHIPPED_DIR", tmp_path / "models")
-    baselines.ship("2link-0.1-1", "stiff", root=tmp_path)
-    shipped = evaluate("2link-0.1-1", "rp", episodes=40)
+    monkeypatch.setattr(models_module, "SHIPPED_DIR", tmp_path / "models")
+    baselines.ship_baselines("2link-0.1-1", "stiff", root=tmp_path)
+    shipped = evaluate_model(EvaluateConfig("2link-0.1-1", "rp", episodes=40)).to_dict()
     assert shipped["mae"] == results["models"]["rp"]["mae"]  # same model, same episodes
     table = baselines.baselines_table("stiff", root=tmp_path)
     row = next(line for line in table.splitlines() if line.startswith("| 2link-0.1-1 "))

@@ -1,15 +1,22 @@
-from masspush.reports.bench import bench_data, bench_ppo, bench_train
+from masspush.reports.bench import (
+    DataBench,
+    PPOBench,
+    TrainBench,
+    bench_data,
+    bench_ppo,
+    bench_train,
+)
 
 
 def test_collection_and_training_benchmarks_report_rates():
-    data = bench_data("2link-0.1-1", "stiff", episodes=20)
+    data = bench_data(DataBench("2link-0.1-1", "stiff", episodes=20))
     assert data["episodes_per_s"] > 0 and data["pushes_per_s"] == 2 * data["episodes_per_s"]
-    rows = bench_train(episodes=60, steps=20)
+    rows = bench_train(TrainBench(episodes=60, steps=20))
     assert [r["batch_size"] for r in rows] == [16, 256]
     assert all(r["samples_per_s"] > 0 for r in rows)
 
 
 def test_ppo_benchmark_reports_a_rate_per_learner():
-    rows = bench_ppo("2link-0.1-1", "stiff", ("mlp",), steps=16, envs=(4,), n_steps=8)
+    rows = bench_ppo(PPOBench("2link-0.1-1", "stiff", ("mlp",), steps=16, envs=(4,), n_steps=8))
     assert len(rows) == 1 and rows[0]["pushes_per_s"] > 0
     assert rows[0]["pushes"] == 32  # PPO completes its rollout of 4 x 8

@@ -4,7 +4,8 @@ import sys
 
 import pytest
 
-from masspush.cli import bayes_options, main
+from masspush.bayes.filter import bayes_overrides
+from masspush.cli import main
 
 
 def run_cli(*args: str) -> subprocess.CompletedProcess:
@@ -61,15 +62,15 @@ def test_reproduce_table_only_writes_the_table_beside_the_papers(tmp_path, monke
 
 
 def test_bayes_options_become_typed_filter_fields():
-    assert bayes_options(None) is None
-    got = bayes_options(["particles=512", "likelihood_power=0.6", "tail_dof=none"])
+    assert bayes_overrides(None) is None
+    got = bayes_overrides(["particles=512", "likelihood_power=0.6", "tail_dof=none"])
     assert got == {"particles": 512, "likelihood_power": 0.6, "tail_dof": None}
     assert isinstance(got["particles"], int)
-    with pytest.raises(SystemExit, match="KEY one of"):
-        bayes_options(["particle=5"])
-    with pytest.raises(SystemExit, match="a number"):
-        bayes_options(["particles=many"])
-    assert bayes_options(["arm_model=surrogate"]) == {"arm_model": "surrogate"}
+    with pytest.raises(ValueError, match="KEY one of"):
+        bayes_overrides(["particle=5"])
+    with pytest.raises(ValueError, match="a number"):
+        bayes_overrides(["particles=many"])
+    assert bayes_overrides(["arm_model=surrogate"]) == {"arm_model": "surrogate"}
 
 
 def test_randomise_collects_fine_tunes_and_names_the_result(tmp_path, capsys):

@@ -5,12 +5,12 @@ import sys
 import numpy as np
 import pytest
 
-import masspush.evaluate as evaluate_module
+import masspush.models as models_module
 from masspush.config import EnvConfig
 from masspush.data.rollout import TRAIN, RandomPolicy, run_batch
-from masspush.evaluate import evaluate
+from masspush.evaluate import EvaluateConfig, evaluate
 from masspush.learn.predictor import MassPredictor, load_model, save_model, step_inputs
-from masspush.models import SHIPPED_DIR, resolve_model
+from masspush.models import SHIPPED_DIR, evaluate_model, resolve_model
 from masspush.settings import get_setting
 
 KEYS = {"percentage_error", "relative_error", "mae", "constant_floor", "episodes", "failures"}
@@ -58,9 +58,15 @@ def test_evaluate_json_has_the_documented_keys(model_file):
 
 
 def test_evaluation_is_deterministic_and_seeded(model_file):
-    a = evaluate("2link-0.1-1", model_file, episodes=20, seed=1)
-    b = evaluate("2link-0.1-1", model_file, episodes=20, seed=1)
-    c = evaluate("2link-0.1-1", model_file, episodes=20, seed=2)
+    a = evaluate_model(
+        EvaluateConfig("2link-0.1-1", str(model_file), episodes=20, seed=1)
+    ).to_dict()
+    b = evaluate_model(
+        EvaluateConfig("2link-0.1-1", str(model_file), episodes=20, seed=1)
+    ).to_dict()
+    c = evaluate_model(
+        EvaluateConfig("2link-0.1-1", str(model_file), episodes=20, seed=2)
+    ).to_dict()
     assert a == b and a["mae"] != c["mae"]
 
 
@@ -70,11 +76,11 @@ def test_unknown_models_are_clear_errors(model_file, tmp_path, monkeypatch):
     shipped = tmp_path / "models"
     (shipped / "2link-0.1-1").mkdir(parents=True)
     (shipped / "2link-0.1-1" / "rp.pt").write_bytes(b"")
-    monkeypatch.setattr(evaluate_module, "SHIPPED_DIR", shipped)
+    monkeypatch.setattr(models_module, "SHIPPED_DIR", shipped)
     with pytest.raises(ValueError, match=r"no shipped 'tp' model .*shipped for it: \['rp'\]"):
         resolve_model("tp", "2link-0.1-1")
     with pytest.raises(ValueError, match="trained for setting"):
-        evaluate("3link-0.1-1", model_file, episodes=2)
+        evaluate_model(EvaluateConfig("3link-0.1-1", str(model_file), episodes=2)).to_dict()
 
 
 def test_every_shipped_model_loads_by_name_with_its_policy():
@@ -98,14 +104,21 @@ def test_every_shipped_model_loads_by_name_with_its_policy():
 
 
 def test_per_episode_records_pair_a_learned_model_with_the_filter(model_file):
-    from masspush.bayes.filter import BayesConfig, evaluate_bayes
+    from masspush.bayes.estimator import BayesEstimator
+    from masspush.bayes.filter import BayesConfig
     from masspush.metrics import paired_percentage_errors
 
-    learned = evaluate("2link-0.1-1", model_file, episodes=4, per_episode=True)
-    assert "per_episode" not in evaluate("2link-0.1-1", model_file, episodes=2)
+    learned = evaluate_model(
+        EvaluateConfig("2link-0.1-1", str(model_file), episodes=4, per_episode=True)
+    ).to_dict()
+    assert (
+        "per_episode"
+        not in evaluate_model(EvaluateConfig("2link-0.1-1", str(model_file), episodes=2)).to_dict()
+    )
     small = BayesConfig(particles=16, lookahead_particles=4)
-    filt = evaluate_bayes(get_setting("2link-0.1-1"), "bayes-random", episodes=3, pusher="stiff",
-                          config=small, progress=False)  # fmt: skip
+    setting = get_setting("2link-0.1-1")
+    estimator = BayesEstimator(setting, "bayes-random", "stiff", config=small, progress=False)
+    filt = evaluate(setting, estimator, episodes=3, per_episode=True).to_dict()
     record = learned["per_episode"]
     assert len(record["index"]) == learned["episodes"] == len(record["estimate"])
     # The same evaluation stream: the episodes both scored have the same chains (the
@@ -133,5 +146,5 @@ def test_the_cli_pairs_an_evaluation_with_an_earlier_one(model_file, tmp_path, c
     assert paired["percentage_error"] == pytest.approx(result["percentage_error"], rel=1e-4)
     bare = tmp_path / "bare.json"
     bare.write_text(json.dumps({"model": "x"}))
-    with pytest.raises(SystemExit, match="no per-episode record"):
-        main([*args, "--paired-with", str(bare)])
+    assert main([*args, "--paired-with", str(bare)]) == 2
+    assert "no per-episode record" in capsys.readouterr().err

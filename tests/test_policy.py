@@ -115,13 +115,15 @@ def test_an_untrained_policy_starts_at_the_initial_action(algo, predictor_file, 
 
 
 def test_the_policy_environment_pushes_in_another_world(predictor_file):
+    from functools import partial
+
+    from masspush.real.randomise import world_env
     from masspush.real.target_world import TargetWorld
 
     setting = get_setting("2link-0.1-1")
     config = replace(CONFIG, pushes=2)
-    with pytest.raises(ValueError, match="setting"):
-        PushPolicyEnv(config, str(predictor_file), world=TargetWorld())
-    env = PushPolicyEnv(config, str(predictor_file), setting=setting.name, world=TargetWorld())
+    other = partial(world_env, setting.name, TargetWorld(), config.pusher, config.pushes)
+    env = PushPolicyEnv(config, str(predictor_file), chain_env=other)
     check_env(env, skip_render_check=True)
     _, info = env.reset(seed=3)
     _, base_info = PushPolicyEnv(config, str(predictor_file)).reset(seed=3)

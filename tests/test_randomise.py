@@ -102,14 +102,14 @@ def test_the_tuned_predictor_pushes_with_its_policy_where_it_is_and_where_it_shi
 ):
     import shutil
 
-    from masspush import evaluate
+    from masspush import models
     from masspush.models import model_and_policy
 
     shipped = tmp_path / "models" / SETTING
     shipped.mkdir(parents=True)
     for name in ("tp+.pt", "tp+.policy.zip"):
-        shutil.copyfile(evaluate.SHIPPED_DIR / SETTING / name, shipped / name)
-    monkeypatch.setattr(evaluate, "SHIPPED_DIR", tmp_path / "models")
+        shutil.copyfile(models.SHIPPED_DIR / SETTING / name, shipped / name)
+    monkeypatch.setattr(models, "SHIPPED_DIR", tmp_path / "models")
     trained = randomise(TINY, tmp_path / "run", workers=1, progress=False)
     path = randomise(TINY, tmp_path / "run", workers=1, ship=True, progress=False)
     assert path == shipped / "tp+dr.pt"

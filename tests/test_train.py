@@ -3,13 +3,14 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from masspush import evaluate as evaluate_module
-from masspush import train as train_module
-from masspush.evaluate import evaluate
+from masspush import models as models_module
+from masspush.evaluate import EvaluateConfig
+from masspush.learn import recipe as train_module
 from masspush.learn.policy import PolicyConfig
 from masspush.learn.predictor import ModelMismatchError, load_model
 from masspush.learn.recipe import FINETUNE, PREDICTOR, Recipe, RecipeConfig
-from masspush.reports.reproduce import collect_rows, table_markdown, write_outputs
+from masspush.models import evaluate_model
+from masspush.reports.reproduce import collect_rows, ship_recipe, table_markdown, write_outputs
 from masspush.settings import get_setting
 
 SETTING = get_setting("2link-0.1-1")
@@ -66,21 +67,23 @@ def test_a_short_recipe_resumes_after_interruption_and_beats_the_floor(tmp_path,
     # TP and TP+ ship as files that load by name and refuse another setting; with no RP
     # shipped for the setting, predictor-0 ships as its random-push RP.
     models = tmp_path / "models"
-    monkeypatch.setattr(evaluate_module, "SHIPPED_DIR", models)
-    shipped = Recipe(SETTING, "stiff", run, TINY, progress=False).ship(models / SETTING.name)
+    monkeypatch.setattr(models_module, "SHIPPED_DIR", models)
+    shipped = ship_recipe(Recipe(SETTING, "stiff", run, TINY, progress=False))
     assert {p.name for p in shipped} == {
         "rp.pt", "tp.pt", "tp.policy.zip", "tp+.pt", "tp+.policy.zip"
     }  # fmt: skip
     assert load_model(models / SETTING.name / "rp.pt")[1]["policy"] == "random"
-    again = Recipe(SETTING, "stiff", run, TINY, progress=False).ship(models / SETTING.name)
+    again = ship_recipe(Recipe(SETTING, "stiff", run, TINY, progress=False))
     assert "rp.pt" not in {p.name for p in again}  # an RP already there is kept
     _, meta = load_model(models / SETTING.name / "tp+.pt", setting=SETTING.name, pusher="stiff")
     assert meta["policy"] == "learned" and meta["setting"]["name"] == SETTING.name
-    result = evaluate(SETTING.name, "tp+", episodes=200)
+    result = evaluate_model(EvaluateConfig(SETTING.name, "tp+", episodes=200)).to_dict()
     final = state["history"][-1]
     assert result["policy"].startswith("learned") and result["mae"] == pytest.approx(final["mae"])
     with pytest.raises(ModelMismatchError, match=r"2link-0\.1-1"):
-        evaluate("2link-1-10", models / SETTING.name / "tp+.pt", episodes=5)
+        evaluate_model(
+            EvaluateConfig("2link-1-10", str(models / SETTING.name / "tp+.pt"), episodes=5)
+        )
 
     # The table and figures come from the run's files.
     rows = collect_rows([SETTING.name], {SETTING.name: "stiff"}, root=tmp_path)

@@ -3,10 +3,10 @@ import shutil
 import numpy as np
 import pytest
 
-from masspush import evaluate as evaluate_module
+from masspush import models as models_module
 from masspush.config import EnvConfig
 from masspush.data.rollout import EVAL, TRAIN, RandomPolicy, run_episodes
-from masspush.evaluate import evaluate
+from masspush.evaluate import EvaluateConfig
 from masspush.learn.predictor import load_model
 from masspush.learn.uncertainty import (
     HeadConfig,
@@ -18,7 +18,7 @@ from masspush.learn.uncertainty import (
     load_head,
     save_head,
 )
-from masspush.models import SHIPPED_DIR
+from masspush.models import SHIPPED_DIR, evaluate_model, resolve_model
 from masspush.settings import get_setting
 
 SETTING = get_setting("2link-1-10")
@@ -63,10 +63,16 @@ def test_evaluate_reports_coverage_when_the_model_has_a_head(fitted, tmp_path, m
     models = tmp_path / "models"
     shutil.copytree(SHIPPED_DIR / SETTING.name, models / SETTING.name,
                     ignore=shutil.ignore_patterns("*.dirichlet.pt"))  # fmt: skip
-    monkeypatch.setattr(evaluate_module, "SHIPPED_DIR", models)
-    assert "coverage" not in evaluate(SETTING.name, "rp+", episodes=20)
+    monkeypatch.setattr(models_module, "SHIPPED_DIR", models)
+    assert (
+        "coverage" not in evaluate_model(EvaluateConfig(SETTING.name, "rp+", episodes=20)).to_dict()
+    )
     save_head(head_path(models / SETTING.name / "rp+.pt"), head, {"setting": SETTING.name})
-    assert 0 <= evaluate(SETTING.name, "rp+", episodes=20)["coverage"] <= 1
+    assert (
+        0
+        <= evaluate_model(EvaluateConfig(SETTING.name, "rp+", episodes=20)).to_dict()["coverage"]
+        <= 1
+    )
 
 
 def test_the_learned_density_peaks_at_the_models_estimate(fitted):
@@ -86,7 +92,7 @@ def test_the_learned_density_peaks_at_the_models_estimate(fitted):
 
 def test_a_model_without_a_head_is_refused_with_the_command_that_fits_one():
     with pytest.raises(ValueError, match="masspush calibrate --setting 2link-1-10 --model rp"):
-        LearnedPosterior.load("rp", SETTING.name)
+        LearnedPosterior.load(resolve_model("rp", SETTING.name), SETTING.name)
 
 
 def test_bad_head_configs_are_refused():

@@ -14,6 +14,7 @@ if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
 
 import gymnasium as gym
 
+from masspush import _compat
 from masspush.config import EnvConfig, PhysicsConfig
 from masspush.env import ENV_ID, ChainEnv
 from masspush.sim.batch import ChainBatch
@@ -21,6 +22,8 @@ from masspush.sim.chain import ChainParams, sample_chain
 from masspush.sim.simulate import ChainSim, PushOutcome
 
 __version__ = "0.1.0"
+
+_compat.install()  # masspush.chain, masspush.robot, ... of 0.1 still import
 
 if ENV_ID not in gym.registry:
     gym.register(id=ENV_ID, entry_point="masspush.env:ChainEnv")

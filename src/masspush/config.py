@@ -31,6 +31,41 @@ def _check_range(name: str, value: Range, *, low: float | None = None) -> None:
         raise ValueError(f"{name} must not go below {low}, got {value!r}")
 
 
+def check_int(name: str, value: Any, low: int = 1, optional: bool = False) -> None:
+    """Raise ValueError unless value is an integer >= low (or None, where `optional`)."""
+    if optional and value is None:
+        return
+    if not isinstance(value, int) or isinstance(value, bool) or value < low:
+        raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+
+
+def check_choice(name: str, value: Any, choices: tuple, optional: bool = False) -> None:
+    """Raise ValueError unless value is one of `choices` (or None, where `optional`)."""
+    if optional and value is None:
+        return
+    if value not in choices:
+        raise ValueError(f"{name} must be one of {list(choices)}, got {value!r}")
+
+
+def check_output(path: str, name: str, suffixes: tuple[str, ...] = ()) -> None:
+    """Raise ValueError unless `path` can be written as a file: not a directory, in a
+    directory that exists or can be made, not read-only, ending in one of `suffixes`. Checked
+    before any work, so that a run never fails at its save."""
+    import os
+    from pathlib import Path
+
+    p = Path(path)
+    if suffixes and p.suffix.lower() not in suffixes:
+        raise ValueError(f"{name} must end in {' or '.join(suffixes)}, got {str(path)!r}")
+    if p.is_dir():
+        raise ValueError(f"{name}: {path} is a directory, not a file")
+    if p.exists() and not os.access(p, os.W_OK):
+        raise ValueError(f"{name}: {path} is not writable")
+    parent = next((q for q in [p.parent, *p.parent.parents] if q.exists()), Path("."))
+    if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
+        raise ValueError(f"{name}: cannot write under {parent}")
+
+
 def _check_positive(name: str, value: float) -> None:
     if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
         raise ValueError(f"{name} must be a positive finite number, got {value!r}")

@@ -14,13 +14,63 @@ the TRAIN stream that datasets are collected from, so evaluation never reuses a 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from pathlib import Path
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
-from masspush.config import EnvConfig
-from masspush.metrics import all_metrics, percentage_error
+from masspush.config import EnvConfig, check_int
+from masspush.metrics import (
+    all_metrics,
+    paired_difference_interval,
+    paired_percentage_errors,
+    percentage_error,
+)
 from masspush.settings import Setting
+
+
+@dataclass(frozen=True)
+class EvaluateConfig:
+    """`masspush evaluate`: an estimator on fresh simulated episodes."""
+
+    setting: str
+    """Named setting of the episodes."""
+    model: str
+    """A model file; a shipped name (rp, rp+, tp, tp+, tp+dr); or bayes, bayes-random (the
+    particle filter with information-seeking or random pushes)."""
+    episodes: int = 800
+    """Fresh episodes from the evaluation stream."""
+    seed: int = 0
+    """Base seed of the evaluation stream."""
+    pusher: str | None = None
+    """The pusher (default: the one the model was trained with; the filter: the setting's)."""
+    workers: int | None = None
+    """Processes for an arm (default: one per core)."""
+    per_episode: bool = False
+    """Record each scored episode's estimate and truth (for a later --paired-with)."""
+    paired_with: str | None = None
+    """An earlier `evaluate --json --per-episode` of another model on the same setting, seed
+    and episodes: also score both on the episodes both scored, with a 95 % bootstrap
+    interval of the difference."""
+    settings_file: str | None = None
+    """TOML file with custom settings."""
+
+    MAX_EPISODES: ClassVar[int] = 10_000_000
+    """More is a typo, not an evaluation: its arrays would not fit in memory."""
+
+    def __post_init__(self) -> None:
+        check_int("episodes", self.episodes)
+        if self.episodes > self.MAX_EPISODES:
+            raise ValueError(
+                f"episodes must be at most {self.MAX_EPISODES:,}, got {self.episodes:,}"
+            )
+        check_int("seed", self.seed, 0)
+        check_int("workers", self.workers, optional=True)
+        if self.paired_with is not None:
+            path = Path(self.paired_with)
+            if not path.is_file():
+                what = "is a directory" if path.is_dir() else "does not exist"
+                raise ValueError(f"paired_with: {path} {what}")
 
 
 @dataclass
@@ -82,6 +132,23 @@ class EvalResult:
     @property
     def percentage_error(self) -> float:
         return self.metrics["percentage_error"]
+
+    def pair_with(self, other: dict[str, Any]) -> None:
+        """Score this result and `other` (an earlier result's JSON, with its per-episode
+        record) on the episodes both scored, into `extra["paired"]`."""
+        if self.per_episode is None:
+            raise ValueError("pairing needs this result's per-episode record (per_episode)")
+        if not isinstance(other, dict) or "per_episode" not in other:
+            raise ValueError("the other result has no per-episode record (--per-episode)")
+        mine, theirs = self.per_episode, other["per_episode"]
+        own, their_error, n = paired_percentage_errors(mine, theirs)
+        self.extra["paired"] = {
+            "with": other.get("model"),
+            "episodes": n,
+            "percentage_error": own,
+            "their_percentage_error": their_error,
+            "difference_95_interval": paired_difference_interval(mine, theirs),
+        }
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"setting": self.setting, "model": self.model}

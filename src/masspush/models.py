@@ -9,17 +9,21 @@ which need no file.
 
 from __future__ import annotations
 
+import json
 import os
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from masspush.bayes.estimator import BAYES_MODELS, BayesEstimator
-from masspush.evaluate import Estimator
+from masspush.config import check_output
+from masspush.evaluate import Estimator, EvalResult, EvaluateConfig, evaluate
 from masspush.learn.estimator import PredictorEstimator
 from masspush.learn.policy import model_policy, strip_policy
 from masspush.learn.predictor import MassPredictor, load_model, save_model
-from masspush.settings import Setting
+from masspush.learn.uncertainty import HeadConfig, calibrate
+from masspush.settings import Setting, get_setting
 
 SHIPPED_DIR = Path(__file__).parent / "models"
 """Trained models shipped with the package: models/<setting>/<name>.pt."""
@@ -101,3 +105,62 @@ def ship(setting: str, sources: Mapping[str, str | os.PathLike]) -> list[Path]:
             raise ValueError(f"{source} does not exist: train the {name!r} model first")
         written += ship_model(source, SHIPPED_DIR / setting / f"{name}.pt")
     return written
+
+
+def evaluate_model(
+    config: EvaluateConfig, bayes: dict[str, Any] | None = None, progress: bool = True
+) -> EvalResult:
+    """`masspush evaluate`: the estimator `config.model` on fresh episodes, paired with an
+    earlier result where `config.paired_with` names one (read before any work)."""
+    spec = get_setting(config.setting, config.settings_file)
+    other = None
+    if config.paired_with is not None:
+        try:
+            other = json.loads(Path(config.paired_with).read_text())
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+            raise ValueError(
+                f"paired_with: {config.paired_with} is not a result's JSON ({err})"
+            ) from None
+        if not isinstance(other, dict) or "per_episode" not in other:
+            raise ValueError(
+                f"paired_with: {config.paired_with} has no per-episode record (--per-episode)"
+            )
+    estimator = load_estimator(config.model, spec, config.pusher, bayes, progress)
+    result = evaluate(
+        spec, estimator, config.episodes, config.seed, config.workers,
+        per_episode=config.per_episode or other is not None,
+    )  # fmt: skip
+    if other is not None:
+        result.pair_with(other)
+    return result
+
+
+@dataclass(frozen=True)
+class CalibrateJob:
+    """`masspush calibrate`: fit a model's learned uncertainty (a Dirichlet head)."""
+
+    setting: str
+    """Named setting of the model."""
+    model: str = "tp+"
+    """Shipped name or file of the predictor."""
+    out: str | None = None
+    """Where to write the head (default: <model>.dirichlet.pt beside it, where
+    `masspush evaluate` finds it)."""
+    settings_file: str | None = None
+    """TOML file with custom settings."""
+
+    def __post_init__(self) -> None:
+        if self.out is not None:
+            check_output(self.out, "out")
+
+
+def calibrate_model(job: CalibrateJob, head: HeadConfig) -> str:
+    """Fit and save the model's head on fresh episodes of its policy; the report."""
+    setting = get_setting(job.setting, job.settings_file)
+    path = resolve_model(job.model, setting.name)
+    result = calibrate(setting, path, head, job.out, model=job.model)
+    return (
+        f"wrote {result['file']} (fitted on {result['episodes']} episodes; 90 % intervals "
+        f"cover {100 * result['coverage_on_fit']:.1f} % of them); "
+        f"`masspush evaluate --setting {setting.name} --model {job.model}` reports coverage"
+    )

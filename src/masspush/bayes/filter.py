@@ -185,7 +185,7 @@ class ParticleFilter:
         power = self.config.likelihood_power
         self.likelihood_power = (1.0 if two else 0.6) if power is None else power
         self.arm = None
-        if env_config.pusher != "stiff":
+        if pusher_kind(env_config.pusher).arm:
             self.arm = ArmSimulator(self.physics, env_config.pusher, self.config.nthread)
 
     def settings(self) -> dict:
@@ -597,6 +597,7 @@ would (its operational-space controller lags the commanded velocity during the s
 contact). Fitted by `scripts/fit_arm_surrogate.py` over speed scale, hold and ramp time
 (docs/bayes.md)."""
 
+
 def default_config(setting, pusher: str | None = None) -> BayesConfig:
     """The filter's configuration for chains of `setting` pushed by `pusher` (the
     setting's by default): `ARM_CONFIG` with `ARM_LIKELIHOOD_POWER` where an arm pushes,
@@ -620,3 +621,28 @@ def filter_for(
         physics = replace(physics, **ARM_SURROGATE.get(pusher, {}))
         pusher = IDEAL_PUSHER
     return ParticleFilter(EnvConfig(physics=physics, pusher=pusher), config, seed=seed)
+
+
+def bayes_overrides(pairs: list[str] | tuple[str, ...] | None) -> dict | None:
+    """KEY=VALUE pairs (`masspush evaluate --bayes`) into BayesConfig fields: numbers as
+    numbers, "none" as None, text for the text fields (arm_model)."""
+    from dataclasses import fields
+
+    if not pairs:
+        return None
+    kinds = {f.name: str(f.type) for f in fields(BayesConfig)}
+    options: dict = {}
+    for pair in pairs:
+        key, sep, text = pair.partition("=")
+        if not sep or key not in kinds:
+            raise ValueError(f"--bayes wants KEY=VALUE, KEY one of {sorted(kinds)}; got {pair!r}")
+        if kinds[key] == "str":
+            options[key] = text
+            continue
+        try:
+            value = None if text.lower() == "none" else float(text)
+        except ValueError:
+            raise ValueError(f"--bayes {key} wants a number or none, got {text!r}") from None
+        integer = kinds[key].startswith("int") and value is not None
+        options[key] = int(value) if integer else value
+    return options

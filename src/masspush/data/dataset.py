@@ -29,9 +29,9 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from masspush.config import EnvConfig
+from masspush.config import EnvConfig, check_choice, check_int
 from masspush.data.rollout import POLICIES, TRAIN, Episodes, Policy, run_episodes
-from masspush.settings import Setting
+from masspush.settings import Setting, get_setting
 
 SCHEMA_VERSION = 1
 MANIFEST = "manifest.json"
@@ -114,6 +114,47 @@ def read_manifest(root: str | os.PathLike) -> Manifest:
         raise DatasetError(
             f"{path} does not have the schema-{SCHEMA_VERSION} fields: {err}"
         ) from None
+
+
+@dataclass(frozen=True)
+class CollectConfig:
+    """`masspush collect`: rollout episodes into a dataset directory (resumable)."""
+
+    setting: str
+    """Named setting, e.g. 2link-0.1-1."""
+    out: str
+    """Dataset directory (a rerun resumes what is there)."""
+    episodes: int
+    """Episodes the dataset is to hold."""
+    policy: str = "random"
+    """The pushing policy (registered names: `masspush.data.rollout.POLICIES`)."""
+    pusher: str | None = None
+    """stiff, kuka or ur10 (default: the setting's pusher)."""
+    seed: int = 0
+    """Base seed of the episodes."""
+    shard_size: int = 1000
+    """Episodes per shard file."""
+    workers: int | None = None
+    """Processes for an arm (default: one per core)."""
+    settings_file: str | None = None
+    """TOML file with custom settings."""
+
+    def __post_init__(self) -> None:
+        check_int("episodes", self.episodes)
+        check_int("shard_size", self.shard_size)
+        check_int("seed", self.seed, 0)
+        check_int("workers", self.workers, optional=True)
+        check_choice("policy", self.policy, tuple(POLICIES))
+
+
+def collect_dataset(config: CollectConfig, progress: bool = True) -> Manifest:
+    """`collect` as `config` says."""
+    setting = get_setting(config.setting, config.settings_file)
+    return collect(
+        setting, config.out, episodes=config.episodes, pusher=config.pusher or setting.pusher,
+        policy=config.policy, base_seed=config.seed, shard_size=config.shard_size,
+        workers=config.workers, progress=progress,
+    )  # fmt: skip
 
 
 def collect(

@@ -282,3 +282,17 @@ def _plain(value: Any) -> Any:
     if isinstance(value, np.integer):
         return int(value)
     return value
+
+
+def check_report(path: str | os.PathLike) -> tuple[bool, list[str]]:
+    """`masspush check-episodes`: whether a recording is good, and what to say of it (every
+    problem with its line and field, or what it holds)."""
+    problems = check_recording(path)
+    if problems:
+        return False, [f"{path}: {problem}" for problem in problems]
+    recording = read_recording(path)
+    labels = sorted({label for label in recording.labels if label is not None})
+    return True, [
+        f"{path}: good: {len(recording.episodes)} episode(s) of a {recording.n_links}-link "
+        f"chain" + (f", labels {labels}" if labels else "")
+    ]

@@ -55,6 +55,8 @@ PAPER_PPO: dict[str, Any] = {
 PAPER_N_ENVS = 16
 PAPER_NET = [64, 64]
 PAPER_LSTM = 256
+
+
 class PushPolicyEnv(gym.Env):
     """One chain, pushed K times; observation: the history; reward: the predictor's accuracy.
 
@@ -151,6 +153,7 @@ class PolicyConfig:
     good as the other, so the gradient out of it vanishes. (0.5, 0.5) is a medium-speed push
     on the middle of the second link, which PPO then moves."""
     seed: int = 0
+    """Seed of PPO (weights, sampled actions) and of its environments."""
 
     def __post_init__(self) -> None:
         if self.algo not in ALGOS:

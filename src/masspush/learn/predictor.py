@@ -134,8 +134,11 @@ class TrainConfig:
     validation_fraction: float = 0.05
     """Share of episodes held out to report validation error."""
     eval_every: int = 5_000
+    """Steps between validation measurements."""
     checkpoint_every: int = 10_000
+    """Steps between checkpoints (a killed run resumes from the last)."""
     seed: int = 0
+    """Seed of the initial weights, the validation split and the batches."""
 
     def __post_init__(self) -> None:
         if self.optimizer not in ("sgd", "adam"):
@@ -156,6 +159,50 @@ class TrainConfig:
 
 FAST = TrainConfig(optimizer="adam", steps=20_000, batch_size=256, lr=3e-3)
 """The faster option: Adam, 256 episodes a step, 20k steps (see docs/results.md)."""
+
+
+@dataclass(frozen=True)
+class PredictorRun:
+    """`masspush train-predictor`: the LSTM predictor on a dataset from `masspush collect`."""
+
+    setting: str
+    """The dataset's named setting (checked against the dataset)."""
+    data: str
+    """Dataset directory."""
+    out: str | None = None
+    """Run directory; a rerun resumes it (default: runs/predictor-<setting>-<episodes>)."""
+    episodes: int | None = None
+    """Train on the first this many episodes (default: all)."""
+    fast: bool = False
+    """Start from the fast option (`FAST`: Adam, batch 256, 20k steps) instead of the paper's."""
+
+    def __post_init__(self) -> None:
+        if self.episodes is not None and (not isinstance(self.episodes, int) or self.episodes < 2):
+            raise ValueError(f"episodes must be an integer >= 2, got {self.episodes!r}")
+
+
+def train_on_dataset(
+    run: PredictorRun, config: TrainConfig, progress: bool = True
+) -> tuple[Path, dict[str, Any]]:
+    """Train a predictor on a dataset; returns the model file and the training summary."""
+    from masspush.data.dataset import code_version, load_dataset
+
+    manifest, episodes = load_dataset(run.data, limit=run.episodes)
+    if manifest.setting["name"] != run.setting:
+        raise ValueError(
+            f"{run.data} holds setting {manifest.setting['name']!r}, not {run.setting!r}"
+        )
+    meta = {
+        "setting": manifest.setting,
+        "pusher": manifest.pusher,
+        "policy": manifest.policy,
+        "dataset": str(run.data),
+        "dataset_episodes": len(episodes),
+        "code_version": code_version(),
+    }
+    out = Path(run.out or f"runs/predictor-{run.setting}-{len(episodes)}")
+    _, summary = train_predictor(episodes, out, config, meta, progress=progress)
+    return out / "predictor.pt", summary
 
 
 def save_model(path: str | os.PathLike, model: MassPredictor, meta: dict[str, Any]) -> None:

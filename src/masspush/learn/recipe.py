@@ -58,6 +58,7 @@ class RecipeConfig:
     eval_episodes: int = 800
     """Fresh episodes for the error after each meta-iteration [paper: 800]."""
     seed: int = 0
+    """Seed of the recipe's collections and evaluations."""
 
     def __post_init__(self) -> None:
         if self.meta_iterations < 1:

@@ -31,6 +31,8 @@ FORMAT, VERSION = "masspush-dirichlet-head", 1
 
 @dataclass(frozen=True)
 class HeadConfig:
+    """The Dirichlet head: its size, its fit and the intervals it gives."""
+
     hidden: int = 32
     steps: int = 600
     """Full-batch Adam steps [ours]."""

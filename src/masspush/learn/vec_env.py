@@ -19,6 +19,7 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 from masspush.config import EnvConfig
 from masspush.data.rollout import Episodes
 from masspush.learn.features import history_dim, history_features, paper_reward
+from masspush.sim.pushers import pusher_kind
 
 
 class BatchPushVecEnv(VecEnv):
@@ -27,7 +28,7 @@ class BatchPushVecEnv(VecEnv):
     def __init__(self, env_config: EnvConfig, predictor_path: str, n_envs: int, seed: int = 0):
         from masspush.learn.predictor import load_model
 
-        if env_config.pusher != "stiff":
+        if not pusher_kind(env_config.pusher).batch:
             raise ValueError(
                 f"the batch path runs the stiff pusher only, not {env_config.pusher!r}"
             )

@@ -138,6 +138,7 @@ class RecordedPolicy:
 BACKENDS = ("target", "replay")
 """Robot backends besides the simulated pushers."""
 
+
 def make_robot(
     backend: str,
     setting,
@@ -160,5 +161,3 @@ def make_robot(
             raise ValueError("the replay backend needs --episodes FILE (a recording)")
         return ReplayRobot(recording)
     raise ValueError(f"unknown robot backend {backend!r}; known: {[*PUSHERS, *BACKENDS]}")
-
-

@@ -72,6 +72,7 @@ class ClassifierConfig:
     estimates scatter independently: the std of 16 runs' mean is a single run's over 4)
     [ours]; "average": the classifier reads the features averaged over the runs [ours]."""
     seed: int = 0
+    """Seed of the folds and the classifier's initial weights."""
 
     def __post_init__(self) -> None:
         if not self.hidden or min(self.hidden) < 1:

@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from masspush.config import check_int
 from masspush.data.rollout import Episodes, empty_episodes, failure_code
 from masspush.real.robot_env import RobotEnv
 from masspush.real.target_world import TargetWorld, TargetWorldRobot, WorldRanges
@@ -53,11 +54,17 @@ episode i owns seeds base + 64 i ... base + 64 i + 63."""
 
 @dataclass(frozen=True)
 class RandomiseConfig:
+    """`masspush randomise`: fine-tune a predictor on its policy's episodes in randomised
+    worlds (domain randomisation)."""
+
     setting: str = "real-ur10-4push"
+    """Named setting of the predictor and its chains."""
     model: str = "tp+"
     """Shipped name or path of the predictor to fine-tune; its policy makes the pushes."""
     episodes: int = 8000
+    """Randomised episodes to collect."""
     shard_size: int = 250
+    """Episodes per shard file (a killed collection resumes by shard)."""
     base_seed: int = 50_000_000
     """Far from the seeds `masspush sim2real` gives the target world (0 ... ~500 000)."""
     steps: int = 10_000
@@ -72,7 +79,8 @@ class RandomiseConfig:
     """Pushes per environment between two PPO updates; None keeps the paper's buffer."""
     ranges: WorldRanges = field(default_factory=WorldRanges)
     world: str = "randomised"
-    """One of `WORLDS`."""
+    """randomised: worlds drawn per episode; target: the sim-to-real target world itself, an
+    upper bound (what many labelled episodes of the tested setup could give), not to ship."""
 
     def __post_init__(self) -> None:
         if self.world not in WORLDS:
@@ -239,8 +247,13 @@ def train_randomised_policy(
         init=Path(model_file).parent / meta["policy_file"],
         progress=progress,
         meta={"randomised": asdict(config)},
-        chain_env=partial(world_env, setting.name, config.worlds, setting.env_config().pusher,
-                          setting.env_config().pushes),
+        chain_env=partial(
+            world_env,
+            setting.name,
+            config.worlds,
+            setting.env_config().pusher,
+            setting.env_config().pushes,
+        ),
     )
     pushing = root / "pushing-model.pt"
     save_model(pushing, model, {**meta, "policy_file": str(policy.relative_to(root))})
@@ -251,6 +264,29 @@ def world_env(setting: str, world: TargetWorld | WorldRanges, pusher: str, pushe
     """A policy-training environment whose chains are pushed in `world` (a
     `masspush.learn.policy.ChainEnvFactory` once its arguments are bound)."""
     return RobotEnv(TargetWorldRobot(setting, world=world, pusher=pusher), pushes)
+
+
+@dataclass(frozen=True)
+class RandomiseRun:
+    """Where and how `masspush randomise` runs."""
+
+    out: str | None = None
+    """Run directory; a rerun resumes it (default: runs/randomise-<setting>[-policy][-target])."""
+    workers: int | None = None
+    """Processes collecting the episodes (default: one per core)."""
+    ship: bool = False
+    """Ship the result as tp+dr (tp+drp with --policy-steps) beside the model."""
+
+    def __post_init__(self) -> None:
+        check_int("workers", self.workers, optional=True)
+
+
+def randomise_run(config: RandomiseConfig, run: RandomiseRun) -> Path:
+    """`randomise` in `run.out`, or in the default directory named for what it does."""
+    suffix = "-policy" if config.policy_steps else ""
+    suffix += "-target" if config.world == "target" else ""
+    out = run.out or f"runs/randomise-{config.setting}{suffix}"
+    return randomise(config, out, run.workers, ship=run.ship)
 
 
 def randomise(

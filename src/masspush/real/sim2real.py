@@ -89,6 +89,30 @@ class Sim2RealConfig:
             )
 
 
+@dataclass(frozen=True)
+class Sim2RealJob:
+    """Where `masspush sim2real` writes, and the models of its two arms."""
+
+    out: str = "results/sim2real"
+    """Directory of the recordings and the summary (a rerun reuses its recordings)."""
+    random_model: str = ARMS["random"]
+    """The random-push arm's model."""
+    learned_model: str = ARMS["learned"]
+    """The learned arm's model, e.g. tp+dr."""
+
+
+def sim2real(job: Sim2RealJob, config: Sim2RealConfig) -> str:
+    """`masspush sim2real`: both arms recorded and scored; the summary (Markdown). The
+    classifier's folds and weights follow the experiment's seed."""
+    config = replace(
+        config,
+        models={"random": job.random_model, "learned": job.learned_model},
+        classifier=replace(config.classifier, seed=config.seed),
+    )
+    run_sim2real(config, job.out)
+    return (Path(job.out) / "summary.md").read_text()
+
+
 def record_classes(
     config: Sim2RealConfig, predictor, policy, robot_name: str, desc: str = "",
     progress: bool = True, target: TargetWorld | None = None,

@@ -12,19 +12,81 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import asdict, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from masspush.config import check_int
 from masspush.data.dataset import code_version, collect, load_dataset
 from masspush.evaluate import evaluate
 from masspush.learn.estimator import PredictorEstimator
-from masspush.learn.predictor import TrainConfig, train_predictor
+from masspush.learn.predictor import FAST, TrainConfig, train_predictor
 from masspush.models import ship
 from masspush.settings import get_setting
+from masspush.sim.pushers import pusher_kind
 
 # Episodes for RP and RP+ [paper Sec. 4.1]: 32k / 64k (2 links), 64k / 128k (3 links).
 EPISODES = {2: (32_000, 64_000), 3: (64_000, 128_000)}
+
+
+@dataclass(frozen=True)
+class BaselinesConfig:
+    """`masspush baselines`: the paper's RP and RP+ for a setting (resumable)."""
+
+    setting: str | None = None
+    """Named setting (needed unless --table)."""
+    table: bool = False
+    """Print the table of every setting's results and stop."""
+    pusher: str | None = None
+    """The pusher (default: the setting's: kuka, the paper's arm; stiff for 10 kg links)."""
+    fast: bool = False
+    """Train with the fast option (Adam, batch 256, 20k steps)."""
+    features: str | None = None
+    """The predictor's input features: paper or relative (default: the training option's)."""
+    episodes: tuple[int, int] | None = None
+    """Episodes for RP and RP+ (default: the paper's)."""
+    eval_episodes: int = 800
+    """Fresh episodes each model is evaluated on."""
+    ship: bool = False
+    """Ship the trained models into the package."""
+    ship_only: bool = False
+    """Only ship models already trained."""
+
+    def __post_init__(self) -> None:
+        if self.setting is None and not self.table:
+            raise ValueError("setting is required (unless --table)")
+        if self.pusher is not None:
+            pusher_kind(self.pusher)
+        check_int("eval_episodes", self.eval_episodes)
+        if self.episodes is not None:
+            for n in self.episodes:
+                check_int("episodes", n, 2)
+
+
+def baselines(config: BaselinesConfig) -> list[str]:
+    """`masspush baselines`: the table, or the baselines run (and shipped); the report."""
+    if config.table:
+        return [baselines_table(config.pusher)]
+    pusher = config.pusher or get_setting(config.setting).pusher
+    lines = []
+    if not config.ship_only:
+        train = FAST if config.fast else TrainConfig()
+        if config.features:
+            train = replace(train, features=config.features)
+        results = run_baselines(
+            config.setting, pusher, train, eval_episodes=config.eval_episodes,
+            episodes=config.episodes,
+        )  # fmt: skip
+        for name, r in results["models"].items():
+            lines.append(
+                f"{name:4s} percentage error {r['percentage_error']:6.2f}  relative "
+                f"{r['relative_error']:6.2f}  (constant floor {r['constant_floor']:.2f}, "
+                f"evaluated on {r['episodes']} episodes, {r['failures']} failed)"
+            )
+        lines.append(f"timings: {results['timings']}")
+    if config.ship or config.ship_only:
+        lines += [f"shipped {path}" for path in ship_baselines(config.setting, pusher)]
+    return lines
 
 
 def baseline_paths(setting: str, pusher: str, root: str | Path = ".") -> dict[str, Path]:

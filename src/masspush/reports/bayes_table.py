@@ -9,11 +9,13 @@ from __future__ import annotations
 
 import json
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from masspush.bayes.estimator import BAYES_MODELS
 from masspush.bayes.filter import filter_for
+from masspush.config import check_int
 from masspush.evaluate import evaluate
 from masspush.metrics import paired_difference_interval, paired_percentage_errors
 from masspush.models import load_estimator
@@ -119,6 +121,43 @@ def table_markdown(rows: list[dict[str, Any]]) -> str:
             f"| {num(b and b['episodes'], '{}')} |"
         )
     return "\n".join(lines) + "\n"
+
+
+@dataclass(frozen=True)
+class BayesTableConfig:
+    """`masspush bayes-table`: the Bayesian estimator and the learned uncertainty beside
+    Table 1 (each measurement cached: a rerun resumes)."""
+
+    settings: str = "all"
+    """all, or a comma-separated list of named settings."""
+    episodes: int = 50
+    """Episodes per setting for the filter (and TP+ on the same episodes)."""
+    models: tuple[str, ...] = MODELS
+    """The estimators to measure."""
+    tp_episodes: int = 800
+    """Episodes for TP+'s own figure and its coverage."""
+    table_only: bool = False
+    """Only rebuild the table from the cache."""
+
+    def names(self) -> list[str]:
+        return list(PAPER_TABLE) if self.settings == "all" else self.settings.split(",")
+
+    def __post_init__(self) -> None:
+        for name in self.names():
+            get_setting(name)
+        check_int("episodes", self.episodes)
+        check_int("tp_episodes", self.tp_episodes)
+        unknown = set(self.models) - set(MODELS)
+        if unknown:
+            raise ValueError(f"models must be among {list(MODELS)}, got {sorted(unknown)}")
+
+
+def bayes_table_run(config: BayesTableConfig) -> str:
+    """The table (Markdown), measuring what is missing unless `table_only`."""
+    return bayes_table(
+        config.names(), config.episodes, config.models, tp_episodes=config.tp_episodes,
+        measure_missing=not config.table_only,
+    )  # fmt: skip
 
 
 def bayes_table(

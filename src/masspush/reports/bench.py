@@ -10,10 +10,158 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 from tqdm import tqdm
 
-from masspush.config import PhysicsConfig
+from masspush.config import PhysicsConfig, check_int
 from masspush.env import ChainEnv
 from masspush.sim.batch import ChainBatch
 from masspush.sim.chain import sample_chain
+from masspush.sim.pushers import IDEAL_PUSHER, pusher_kind
+
+
+@dataclass(frozen=True)
+class SimBench:
+    """`masspush bench sim`: pushes per second through the environment and the batch path."""
+
+    links: int = 2
+    """Links of the benchmark's chains."""
+    mass_range: tuple[float, float] = (0.1, 1.0)
+    """Each link's mass range, kg."""
+    env_pushes: int = 200
+    """Pushes through the environment (one core)."""
+    chains: int = 512
+    """Chains in the batch run."""
+    pushes_per_chain: int | None = None
+    """Pushes each batch chain gets (default: one per link)."""
+    threads: int | None = None
+    """Threads of the batch path (default: every core)."""
+    seed: int = 0
+    """Random seed of the chains and pushes."""
+
+    def __post_init__(self) -> None:
+        check_int("links", self.links, 2)
+        for name in ("env_pushes", "chains"):
+            check_int(name, getattr(self, name))
+        check_int("pushes_per_chain", self.pushes_per_chain, optional=True)
+        check_int("threads", self.threads, optional=True)
+        check_int("seed", self.seed, 0)
+        PhysicsConfig(n_links=self.links, mass_range=self.mass_range)  # validates the range
+
+
+@dataclass(frozen=True)
+class PushersBench:
+    """`masspush bench pushers`: each pusher's speed, failures and what x10 masses change."""
+
+    links: int = 2
+    """Links of the benchmark's chains."""
+    pushes: int = 60
+    """Pushes through the environment per pusher."""
+    pairs: int = 40
+    """(chain, push) pairs compared with all masses x10."""
+    pushers: tuple[str, ...] = ("stiff", "kuka", "ur10")
+    """The pushers to measure."""
+    seed: int = 0
+    """Random seed of the chains and pushes."""
+
+    def __post_init__(self) -> None:
+        check_int("links", self.links, 2)
+        check_int("pushes", self.pushes)
+        check_int("pairs", self.pairs)
+        check_int("seed", self.seed, 0)
+        for name in self.pushers:
+            pusher_kind(name)
+
+
+@dataclass(frozen=True)
+class DataBench:
+    """`masspush bench data`: episodes collected per second with every core."""
+
+    setting: str = "2link-0.1-1"
+    """Named setting of the episodes."""
+    pusher: str = "kuka"
+    """The pusher that pushes them."""
+    episodes: int = 1000
+    """Episodes to collect."""
+    workers: int | None = None
+    """Processes for an arm (default: one per core)."""
+
+    def __post_init__(self) -> None:
+        pusher_kind(self.pusher)
+        check_int("episodes", self.episodes)
+        check_int("workers", self.workers, optional=True)
+
+
+@dataclass(frozen=True)
+class TrainBench:
+    """`masspush bench train`: predictor training samples per second."""
+
+    setting: str = "2link-0.1-1"
+    """Named setting of the training episodes."""
+    episodes: int = 4000
+    """Training episodes (collected first, on the batch path)."""
+    steps: int = 2000
+    """Training steps of each option."""
+
+    def __post_init__(self) -> None:
+        check_int("episodes", self.episodes, 2)
+        check_int("steps", self.steps)
+
+
+@dataclass(frozen=True)
+class PPOBench:
+    """`masspush bench ppo`: PPO training pushes per second, simulation and updates together."""
+
+    setting: str = "2link-1-10"
+    """Named setting; the policy learns against its shipped RP predictor."""
+    pusher: str | None = None
+    """The pusher (default: the setting's)."""
+    algos: tuple[str, ...] = ("mlp", "recurrent")
+    """Learners to measure."""
+    steps: int = 8192
+    """PPO pushes per run."""
+    envs: tuple[int, ...] = (16,)
+    """Numbers of parallel environments to measure."""
+    n_steps: int | None = None
+    """Pushes per environment between updates (default: the paper's rollout size)."""
+
+    def __post_init__(self) -> None:
+        if self.pusher is not None:
+            pusher_kind(self.pusher)
+        check_int("steps", self.steps)
+        for n in self.envs:
+            check_int("envs", n)
+        check_int("n_steps", self.n_steps, 2, optional=True)
+
+
+@dataclass(frozen=True)
+class MotionBench:
+    """`masspush bench motion`: how far a dataset's chains moved per push."""
+
+    data: str
+    """Dataset directory (from `masspush collect`)."""
+    episodes: int = 8000
+    """Read the first this many episodes."""
+
+    def __post_init__(self) -> None:
+        check_int("episodes", self.episodes)
+
+
+@dataclass(frozen=True)
+class PhysicsBench:
+    """`masspush bench physics`: rest-pose convergence in the time step, chaotic sensitivity."""
+
+    links: int = 2
+    """Links of the benchmark's chains."""
+    mass_range: tuple[float, float] = (0.1, 1.0)
+    """Each link's mass range, kg."""
+    pushes: int = 64
+    """Random single pushes."""
+    seed: int = 0
+    """Random seed of the chains and pushes."""
+
+    def __post_init__(self) -> None:
+        check_int("links", self.links, 2)
+        check_int("pushes", self.pushes)
+        check_int("seed", self.seed, 0)
+        PhysicsConfig(n_links=self.links, mass_range=self.mass_range)
 
 
 @dataclass(frozen=True)
@@ -64,17 +212,11 @@ class SimBenchmark:
         return asdict(self)
 
 
-def bench_sim(
-    n_links: int = 2,
-    mass_range: tuple[float, float] = (0.1, 1.0),
-    env_pushes: int = 200,
-    batch_chains: int = 512,
-    pushes_per_chain: int | None = None,
-    threads: int | None = None,
-    seed: int = 0,
-    progress: bool = True,
-) -> SimBenchmark:
+def bench_sim(config: SimBench = SimBench(), progress: bool = True) -> SimBenchmark:
     """Measure pushes per second through the environment and the batch path."""
+    n_links, mass_range, env_pushes = config.links, config.mass_range, config.env_pushes
+    batch_chains, pushes_per_chain = config.chains, config.pushes_per_chain
+    threads, seed = config.threads, config.seed
     threads = threads or os.cpu_count() or 1
     physics = replace(PhysicsConfig(), n_links=n_links, mass_range=mass_range)
     k = pushes_per_chain or n_links
@@ -176,7 +318,7 @@ def _tip_speeds(name: str, n_links: int) -> dict[float, float]:
     from masspush.sim.pushers import make_pusher
     from masspush.sim.simulate import ChainSim
 
-    if name == "stiff":
+    if not pusher_kind(name).arm:
         return {}
     physics = replace(PhysicsConfig(), n_links=n_links)
     pins = {
@@ -195,17 +337,14 @@ def _tip_speeds(name: str, n_links: int) -> dict[float, float]:
 
 
 def bench_pushers(
-    n_links: int = 2,
-    pushes: int = 60,
-    pairs: int = 40,
-    pushers: tuple[str, ...] = ("stiff", "kuka", "ur10"),
-    seed: int = 0,
-    progress: bool = True,
+    config: PushersBench = PushersBench(), progress: bool = True
 ) -> list[PusherBenchmark]:
     """Pushes per second and the effect of scaling every mass by 10, for each pusher."""
     from masspush.sim.pushers import make_pusher
     from masspush.sim.simulate import ChainSim
 
+    n_links, pushes, pairs, seed = config.links, config.pushes, config.pairs, config.seed
+    pushers = config.pushers
     results = []
     for name in pushers:
         env = ChainEnv(n_links=n_links, pusher=name)
@@ -278,8 +417,14 @@ def pushers_table(results: list[PusherBenchmark]) -> str:
     return "\n".join(lines)
 
 
-def bench_data(setting: str, pusher: str, episodes: int, workers: int | None = None) -> dict:
+def bench_data(config: DataBench = DataBench()) -> dict:
     """Episodes per second collected with every core (the collection engine, no disk)."""
+    setting, pusher, episodes, workers = (
+        config.setting,
+        config.pusher,
+        config.episodes,
+        config.workers,
+    )
     from masspush.data.rollout import TRAIN, RandomPolicy, run_episodes
     from masspush.settings import get_setting
 
@@ -299,9 +444,7 @@ def bench_data(setting: str, pusher: str, episodes: int, workers: int | None = N
     }
 
 
-def bench_train(
-    setting: str = "2link-0.1-1", episodes: int = 4000, steps: int = 2000
-) -> list[dict]:
+def bench_train(config: TrainBench = TrainBench()) -> list[dict]:
     """Training samples per second: the paper's SGD (batch 16) and the fast Adam (batch 256)."""
     import tempfile
 
@@ -309,8 +452,10 @@ def bench_train(
     from masspush.learn.predictor import FAST, TrainConfig, train_predictor
     from masspush.settings import get_setting
 
+    setting, episodes, steps = config.setting, config.episodes, config.steps
+
     spec = get_setting(setting)
-    data = run_batch(spec.env_config("stiff"), RandomPolicy(), np.arange(episodes), TRAIN, 0)
+    data = run_batch(spec.env_config(IDEAL_PUSHER), RandomPolicy(), np.arange(episodes), TRAIN, 0)
     rows = []
     for name, config in (("paper SGD, batch 16", TrainConfig()), ("fast Adam, batch 256", FAST)):
         config = replace(config, steps=steps, eval_every=steps, checkpoint_every=steps)
@@ -328,14 +473,7 @@ def bench_train(
     return rows
 
 
-def bench_ppo(
-    setting: str = "2link-1-10",
-    pusher: str | None = None,
-    algos: tuple[str, ...] = ("mlp", "recurrent"),
-    steps: int = 8192,
-    envs: tuple[int, ...] = (16,),
-    n_steps: int | None = None,
-) -> list[dict]:
+def bench_ppo(config: PPOBench = PPOBench()) -> list[dict]:
     """PPO training speed (pushes per second, simulation and updates together) for each
     learner and number of environments, against the setting's shipped RP predictor."""
     import tempfile
@@ -343,6 +481,9 @@ def bench_ppo(
     from masspush.learn.policy import PolicyConfig, train_policy
     from masspush.models import resolve_model
     from masspush.settings import get_setting
+
+    setting, pusher, algos, steps = config.setting, config.pusher, config.algos, config.steps
+    envs, n_steps = config.envs, config.n_steps
 
     spec = get_setting(setting)
     pusher = pusher or spec.pusher
@@ -369,3 +510,35 @@ def bench_ppo(
                 }
             )
     return rows
+
+
+def bench_motion(config: MotionBench) -> dict:
+    """How far the chains of a dataset moved per push (is there anything to observe?)."""
+    from masspush.data.dataset import load_dataset
+
+    manifest, eps = load_dataset(config.data, limit=config.episodes)
+    eps = eps.select(eps.ok)
+    c = eps.configs.astype(float)
+    moved = 1000 * np.linalg.norm(c[:, 1:, :2] - c[:, :-1, :2], axis=-1).ravel()
+    joint = np.abs(c[:, 1:, 3] - c[:, :-1, 3]).ravel()
+    return {
+        "dataset": str(config.data),
+        "setting": manifest.setting["name"],
+        "pusher": manifest.pusher,
+        "pushes": int(moved.size),
+        "root_moved_mm_median": float(np.median(moved)),
+        "root_moved_mm_p90": float(np.percentile(moved, 90)),
+        "share_moved_under_2mm": float(np.mean(moved < 2)),
+        "first_joint_change_rad_median": float(np.median(joint)),
+    }
+
+
+def bench_physics(config: PhysicsBench = PhysicsBench(), progress: bool = True) -> list:
+    """Rest-pose convergence in the time step and chaotic sensitivity
+    (`masspush.sim.convergence`)."""
+    from masspush.sim.convergence import validate_physics
+
+    return validate_physics(
+        n_links=config.links, mass_range=config.mass_range, pushes=config.pushes,
+        seed=config.seed, progress=progress,
+    )  # fmt: skip

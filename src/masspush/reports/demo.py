@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from masspush.config import check_int, check_output
 from masspush.learn.policy import model_policy
 from masspush.learn.predictor import load_model
 from masspush.models import resolve_model
@@ -25,6 +26,28 @@ from masspush.sim.chain import link_poses
 
 DEMO_SETTING = "2link-1-10"
 """The demo's default setting: 2 links, 1-10 kg, whose pusher (stiff) simulates fastest."""
+
+
+@dataclass(frozen=True)
+class DemoConfig:
+    """`masspush demo`: a shipped policy pushes a random chain; the estimate after each push."""
+
+    setting: str = DEMO_SETTING
+    """Named setting with shipped models."""
+    model: str = "tp+"
+    """Shipped model name (rp, rp+, tp, tp+) or a model file."""
+    seed: int = 0
+    """The chain's random seed."""
+    out: str = "masspush-demo.png"
+    """The picture to write (PNG)."""
+    video: str | None = None
+    """Also render the episode to this MP4 or GIF."""
+
+    def __post_init__(self) -> None:
+        check_int("seed", self.seed, 0)
+        check_output(self.out, "out", suffixes=(".png",))
+        if self.video is not None:
+            check_output(self.video, "video", suffixes=(".mp4", ".gif"))
 
 
 @dataclass
@@ -114,6 +137,22 @@ def run_demo(
     )
     episode.failure = result.failure
     return episode
+
+
+def demo(config: DemoConfig, report=print) -> list[Path]:
+    """The demo: run the episode (reporting each push), draw it, and on request render it
+    to a video. Returns the files written."""
+    episode = run_demo(config.setting, config.model, config.seed, report)
+    written = [draw_demo(episode, config.out)]
+    if config.video:
+        from masspush.reports.render import render_episode
+
+        result = render_episode(
+            episode.setting.name, episode.pusher, config.video, seed=config.seed,
+            actions=np.asarray(episode.actions),
+        )  # fmt: skip
+        written.append(result.video)
+    return written
 
 
 def draw_demo(episode: DemoEpisode, out: str | os.PathLike) -> Path:

@@ -18,16 +18,52 @@ import mujoco
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
+from masspush.config import check_int, check_output
 from masspush.env import ChainEnv
 from masspush.settings import get_setting
 from masspush.sim.chain import link_poses
+from masspush.sim.pushers import pusher_kind
 
 VIDEO_FPS = 30
 PUSH_FRAME_TIME = 0.004
 """Simulated seconds between frames while the pusher acts: 7.5x slow motion at 30 fps."""
 SLIDE_FRAME_TIME = 1.0 / VIDEO_FPS
 """Simulated seconds between frames while the chain slides: real time."""
-CAMERA_DISTANCE = {"stiff": 0.9, "kuka": 1.6, "ur10": 2.2}
+
+
+@dataclass(frozen=True)
+class RenderConfig:
+    """`masspush render`: one episode of random pushes as a video, optionally with stills."""
+
+    setting: str = "2link-0.1-1"
+    """Named setting of the chain."""
+    pusher: str = "stiff"
+    """The pusher (its own camera distance)."""
+    out: str = "episode.mp4"
+    """The video to write: .mp4 or .gif."""
+    seed: int = 0
+    """Random seed of the chain and its pushes."""
+    width: int = 640
+    """Frame width, pixels."""
+    height: int = 480
+    """Frame height, pixels."""
+    png: bool = False
+    """Also write one still per rest pose."""
+
+    def __post_init__(self) -> None:
+        pusher_kind(self.pusher)
+        check_int("seed", self.seed, 0)
+        check_int("width", self.width, 16)
+        check_int("height", self.height, 16)
+        check_output(self.out, "out", suffixes=(".mp4", ".gif"))
+
+
+def render(config: RenderConfig) -> RenderResult:
+    """`render_episode` as `config` says."""
+    return render_episode(
+        config.setting, config.pusher, config.out, seed=config.seed, width=config.width,
+        height=config.height, stills=config.png,
+    )  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -48,7 +84,7 @@ class _Recorder:
         self.sim = env.sim
         self.renderer = mujoco.Renderer(self.sim.model, height, width)
         self.camera = mujoco.MjvCamera()
-        self.camera.distance = CAMERA_DISTANCE.get(pusher, 1.2)
+        self.camera.distance = pusher_kind(pusher).camera_distance
         self.camera.elevation = -40.0
         self.camera.azimuth = 135.0
         self.pusher = pusher
@@ -116,7 +152,7 @@ def render_episode(
     recorder = _Recorder(env, width, height, pusher)
     env.sim.on_step = recorder
     k = env.config.pushes
-    label = {"stiff": "stiff pusher", "kuka": "KUKA KR 5", "ur10": "UR10"}.get(pusher, pusher)
+    label = pusher_kind(pusher).label
     still_paths: list[Path] = []
     failures: list[str | None] = []
 

@@ -14,12 +14,94 @@ from __future__ import annotations
 import csv
 import json
 from collections.abc import Sequence
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from masspush.reports.baselines import PAPER_TABLE, baseline_paths
+from masspush.learn.predictor import FAST
+from masspush.learn.recipe import Recipe, RecipeConfig
+from masspush.models import SHIPPED_DIR, ship
+from masspush.reports.baselines import PAPER_TABLE, baseline_paths, run_baselines, ship_baselines
+from masspush.settings import get_setting
 
 COLUMNS = ("rp", "rp+", "tp", "tp+")
+
+
+@dataclass(frozen=True)
+class TrainJob:
+    """`masspush train`: the alternating recipe for one setting (resumable)."""
+
+    setting: str
+    """Named setting."""
+    out: str | None = None
+    """Run directory; a rerun resumes it (default: runs/<setting>-<pusher>-train)."""
+    pusher: str | None = None
+    """The pusher (default: the setting's)."""
+    ship: bool = False
+    """Ship TP and TP+ into the package (and RP, for a setting with none yet)."""
+    settings_file: str | None = None
+    """TOML file with custom settings."""
+
+
+def train_setting(job: TrainJob, recipe: RecipeConfig, log=print) -> list[str]:
+    """Run the recipe for one setting (and ship it); the report."""
+    setting = get_setting(job.setting, job.settings_file)
+    pusher = job.pusher or setting.pusher
+    run = Recipe(setting, pusher, job.out or train_dir(setting.name, pusher), recipe, log=log)
+    state = run.run()
+    lines = [
+        f"{h['stage']:16s} percentage error {h['percentage_error']:6.2f}  "
+        f"(constant floor {h['constant_floor']:.2f}, {h['episodes']} episodes)"
+        for h in state["history"]
+    ]
+    lines.append(f"wall clock per stage (s): {state['timings']}")
+    if job.ship:
+        lines += [f"shipped {path}" for path in ship_recipe(run)]
+    return lines
+
+
+def ship_recipe(run: Recipe) -> list[Path]:
+    """Ship a finished recipe's TP and TP+ (and its predictor-0 as RP where none is shipped)."""
+    has_rp = (SHIPPED_DIR / run.setting.name / "rp.pt").exists()
+    return ship(run.setting.name, run.exports(shipped_rp=has_rp))
+
+
+@dataclass(frozen=True)
+class ReproduceConfig:
+    """`masspush reproduce`: the paper's Table 1 and figures, running what is missing."""
+
+    settings: str = "all"
+    """all, or a comma-separated list of named settings."""
+    table_only: bool = False
+    """Only write the table and figures from the runs there are."""
+    pusher: str | None = None
+    """The pusher (default: each setting's)."""
+    ship: bool = False
+    """Ship every finished model into the package."""
+
+    def names(self) -> list[str]:
+        return list(PAPER_TABLE) if self.settings == "all" else self.settings.split(",")
+
+    def __post_init__(self) -> None:
+        for name in self.names():
+            get_setting(name)
+
+
+def reproduce(config: ReproduceConfig, recipe: RecipeConfig, root: str | Path = ".") -> list[Path]:
+    """RP, RP+ (`masspush baselines`) and TP, TP+ (`masspush train`) for each setting where
+    missing, then Table 1 and the figures; returns the files written."""
+    names = config.names()
+    settings = [get_setting(name) for name in names]
+    pushers = {s.name: config.pusher or s.pusher for s in settings}
+    if not config.table_only:
+        for s in settings:
+            run_baselines(s.name, pushers[s.name], replace(FAST, features="relative"), root=root)
+            run = Recipe(s, pushers[s.name], train_dir(s.name, pushers[s.name], root), recipe)
+            run.run()
+            if config.ship:
+                ship_baselines(s.name, pushers[s.name], root)
+                ship_recipe(run)
+    return write_outputs(names, pushers, root)
 
 
 def train_dir(setting: str, pusher: str, root: str | Path = ".") -> Path:

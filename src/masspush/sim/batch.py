@@ -19,7 +19,7 @@ import numpy as np
 from masspush.config import PhysicsConfig
 from masspush.sim.actions import PushSpec, action_to_push, push_geometry
 from masspush.sim.chain import INITIAL_KEY, ChainLayout, ChainParams, compile_scene
-from masspush.sim.pushers import StiffPusher
+from masspush.sim.pushers import IDEAL_PUSHER, StiffPusher, pusher_kind
 from masspush.sim.simulate import OK, PushOutcome, classify, failure_name, settle_cap_steps
 
 
@@ -31,9 +31,9 @@ class ChainBatch:
         chains: Sequence[ChainParams],
         physics: PhysicsConfig,
         nthread: int = 0,
-        pusher: str = "stiff",
+        pusher: str = IDEAL_PUSHER,
     ):
-        if pusher != "stiff":
+        if not pusher_kind(pusher).batch:
             # An arm needs Python control at every step, which MuJoCo's C batch cannot run.
             raise ValueError(
                 f"the batch path runs the stiff pusher only, not {pusher!r}; "

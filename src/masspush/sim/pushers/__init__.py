@@ -13,12 +13,20 @@ from masspush.sim.pushers.stiff import StiffPusher, park
 PUSHER_KINDS: dict[str, PusherKind] = {
     kind.name: kind
     for kind in (
-        PusherKind("stiff", "stiff pusher", StiffPusher, batch=True, arm=False,
-                   camera_distance=0.9),
-        PusherKind("kuka", "KUKA KR 5", lambda: ArmPusher("kuka"), batch=False, arm=True,
-                   camera_distance=1.6),
-        PusherKind("ur10", "UR10", lambda: ArmPusher("ur10"), batch=False, arm=True,
-                   camera_distance=2.2),
+        PusherKind(
+            "stiff", "stiff pusher", StiffPusher, batch=True, arm=False, camera_distance=0.9
+        ),
+        PusherKind(
+            "kuka",
+            "KUKA KR 5",
+            lambda: ArmPusher("kuka"),
+            batch=False,
+            arm=True,
+            camera_distance=1.6,
+        ),
+        PusherKind(
+            "ur10", "UR10", lambda: ArmPusher("ur10"), batch=False, arm=True, camera_distance=2.2
+        ),
     )
 }
 

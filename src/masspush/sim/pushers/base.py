@@ -41,8 +41,6 @@ class Pusher(Protocol):
         `on_step`, if given, is called after every physics step (to record video)."""
 
 
-
-
 @dataclass(frozen=True)
 class PusherKind:
     """A pusher's name and what it can do, so that no module compares pusher names.

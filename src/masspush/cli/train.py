@@ -1,0 +1,124 @@
+"""Commands that train: the predictor, the baselines, the recipe, Table 1, uncertainty."""
+
+from __future__ import annotations
+
+import argparse
+
+from masspush.cli.command import Command
+from masspush.cli.options import add_fields, build
+
+GROUP = "train"
+
+
+def _predictor_options(p: argparse.ArgumentParser) -> None:
+    from masspush.learn.predictor import PredictorRun, TrainConfig
+
+    add_fields(p, PredictorRun)
+    add_fields(p, TrainConfig, only=("features", "optimizer", "steps", "batch_size", "lr",
+                                     "seed"))  # fmt: skip
+
+
+def _predictor(args: argparse.Namespace) -> int:
+    from masspush.learn.predictor import FAST, PredictorRun, TrainConfig, train_on_dataset
+
+    run = build(PredictorRun, args)
+    config = build(TrainConfig, args, base=FAST if run.fast else TrainConfig())
+    path, summary = train_on_dataset(run, config)
+    print(
+        f"wrote {path}: best validation percentage error "
+        f"{summary['best_validation_error']:.2f} at step {summary['best_step']} "
+        f"({summary['samples_per_s']:.0f} samples/s)"
+    )
+    return 0
+
+
+def _baselines_options(p: argparse.ArgumentParser) -> None:
+    from masspush.reports.baselines import BaselinesConfig
+
+    add_fields(p, BaselinesConfig, pairs=("episodes",))
+
+
+def _baselines(args: argparse.Namespace) -> int:
+    from masspush.reports.baselines import BaselinesConfig, baselines
+
+    print("\n".join(baselines(build(BaselinesConfig, args))))
+    return 0
+
+
+RECIPE_FIELDS = ("meta_iterations", "first_episodes", "iteration_episodes", "final_episodes",
+                 "eval_episodes", "seed")  # fmt: skip
+
+
+def _recipe_options(p: argparse.ArgumentParser) -> None:
+    from masspush.learn.policy import PolicyConfig
+    from masspush.learn.recipe import RecipeConfig
+
+    add_fields(p, PolicyConfig, only=("algo", "steps", "n_envs"), prefix="policy_",
+               rename={"steps": "ppo_steps", "n_envs": "envs"})  # fmt: skip
+    add_fields(p, RecipeConfig, only=RECIPE_FIELDS)
+
+
+def _recipe(args: argparse.Namespace):
+    from masspush.learn.policy import PolicyConfig
+    from masspush.learn.recipe import RecipeConfig
+
+    return build(RecipeConfig, args, policy=build(PolicyConfig, args, prefix="policy_"))
+
+
+def _train_options(p: argparse.ArgumentParser) -> None:
+    from masspush.reports.reproduce import TrainJob
+
+    add_fields(p, TrainJob, required=("setting",))
+    _recipe_options(p)
+
+
+def _train(args: argparse.Namespace) -> int:
+    from masspush.reports.reproduce import TrainJob, train_setting
+
+    print("\n".join(train_setting(build(TrainJob, args), _recipe(args))))
+    return 0
+
+
+def _reproduce_options(p: argparse.ArgumentParser) -> None:
+    from masspush.reports.reproduce import ReproduceConfig
+
+    add_fields(p, ReproduceConfig)
+    _recipe_options(p)
+
+
+def _reproduce(args: argparse.Namespace) -> int:
+    from masspush.reports.reproduce import ReproduceConfig, reproduce
+
+    for path in reproduce(build(ReproduceConfig, args), _recipe(args)):
+        print(f"wrote {path}")
+    return 0
+
+
+def _calibrate_options(p: argparse.ArgumentParser) -> None:
+    from masspush.learn.uncertainty import HeadConfig
+    from masspush.models import CalibrateJob
+
+    add_fields(p, CalibrateJob, required=("setting",))
+    add_fields(p, HeadConfig, only=("episodes",))
+
+
+def _calibrate(args: argparse.Namespace) -> int:
+    from masspush.learn.uncertainty import HeadConfig
+    from masspush.models import CalibrateJob, calibrate_model
+
+    print(calibrate_model(build(CalibrateJob, args), build(HeadConfig, args)))
+    return 0
+
+
+COMMANDS = [
+    Command("train-predictor", GROUP, "the LSTM predictor on a dataset (resumable)",
+            _predictor_options, _predictor),
+    Command("baselines", GROUP, "the paper's RP and RP+ for a setting (resumable)",
+            _baselines_options, _baselines),
+    Command("train", GROUP, "the alternating recipe: predictor, then policy / predictor rounds",
+            _train_options, _train),
+    Command("reproduce", GROUP, "the paper's Table 1 and figures (resumable)",
+            _reproduce_options, _reproduce),
+    Command("calibrate", GROUP, "fit a model's learned uncertainty (a Dirichlet head)",
+            _calibrate_options, _calibrate),
+]  # fmt: skip

@@ -1,0 +1,135 @@
+"""`masspush finetune` and `masspush classify`: the paper's real-robot adaptation from a
+recording of labelled episodes (`masspush.real.finetune` holds the classifier itself)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from masspush.config import check_output
+from masspush.data.recording import read_recording
+from masspush.learn.predictor import load_model
+from masspush.models import resolve_model
+from masspush.real.finetune import (
+    ClassifierConfig,
+    classifier_inputs,
+    cross_validate,
+    episode_log_probs,
+    finetune_predictor,
+    fit_classifier,
+    labelled,
+    load_classifier,
+    save_classifier,
+)
+from masspush.settings import get_setting
+
+
+def _check_file(path: str, name: str) -> None:
+    p = Path(path)
+    if p.is_dir():
+        raise ValueError(f"{name}: {path} is a directory, not a file")
+    if not p.exists():
+        raise ValueError(f"{name}: no file at {path}")
+
+
+@dataclass(frozen=True)
+class FinetuneJob:
+    """`masspush finetune`: a classifier on a predictor's features from labelled recordings."""
+
+    setting: str
+    """The predictor's named setting."""
+    episodes: str
+    """Recording of labelled episodes."""
+    model: str = "tp+"
+    """Shipped name or file of the predictor."""
+    out: str = "classifier.pt"
+    """Where to save the classifier (trained on every episode)."""
+    predictor_out: str | None = None
+    """Instead: fine-tune the predictor itself into this directory (needs the masses)."""
+    settings_file: str | None = None
+    """TOML file with custom settings."""
+
+    def __post_init__(self) -> None:
+        _check_file(self.episodes, "episodes")
+        if self.predictor_out is None:
+            check_output(self.out, "out")
+
+
+def finetune(job: FinetuneJob, config: ClassifierConfig) -> list[str]:
+    """Cross-validate the classifier, then save it trained on every episode (or fine-tune
+    the predictor); the report."""
+    setting = get_setting(job.setting, job.settings_file)
+    path = resolve_model(job.model, setting.name)
+    predictor, meta = load_model(path, setting.name)
+    recording = read_recording(job.episodes)
+    if recording.n_links != setting.n_links:
+        raise ValueError(
+            f"{job.episodes} holds {recording.n_links}-link chains, setting {setting.name!r} "
+            f"has {setting.n_links} links"
+        )
+    episodes = recording.to_episodes()
+    if job.predictor_out:
+        out = finetune_predictor(path, episodes, job.predictor_out, recording=str(job.episodes))
+        return [f"fine-tuned predictor: {out}"]
+    labels, classes = labelled(recording)
+    features, owner = classifier_inputs(predictor, episodes, config)
+    scores = cross_validate(features, labels, len(classes), config, owner)
+    lines = [
+        f"{len(labels)} episodes, {len(classes)} classes: {config.folds}-fold cross-validated "
+        f"accuracy {100 * scores['accuracy']:.1f} % (chance {100 * scores['chance']:.1f} %)",
+        f"confusion (rows: truth, columns: predicted), classes in this order: {classes}",
+        *("  " + " ".join(f"{v:4d}" for v in row) for row in scores["confusion"]),
+    ]
+    model = fit_classifier(features, labels[owner], len(classes), config)
+    info = {"setting": setting.name, "predictor": str(path), "predictor_meta": meta,
+            "features": config.features, "segment": config.segment, "runs": config.runs,
+            "episodes": str(job.episodes), "cross_validation": scores}  # fmt: skip
+    saved = save_classifier(job.out, model, classes, config, info)
+    return [*lines, f"saved {saved} (trained on all)"]
+
+
+@dataclass(frozen=True)
+class ClassifyJob:
+    """`masspush classify`: a saved classifier applied to recorded episodes."""
+
+    classifier: str
+    """The classifier file (from `masspush finetune`)."""
+    episodes: str
+    """Recording to classify."""
+
+    def __post_init__(self) -> None:
+        _check_file(self.classifier, "classifier")
+        _check_file(self.episodes, "episodes")
+
+
+def classify(job: ClassifyJob) -> list[str]:
+    """Each episode's class and probability, and the accuracy on the labelled ones."""
+    model, classes, meta = load_classifier(job.classifier)
+    predictor, _ = load_model(meta["predictor"], meta["setting"])
+    recording = read_recording(job.episodes)
+    if recording.setting is not None and recording.setting != meta["setting"]:
+        raise ValueError(
+            f"{job.episodes} was recorded in setting {recording.setting!r}; the classifier "
+            f"reads a {meta['setting']!r} predictor"
+        )
+    # Classifiers saved before runs could be read one by one averaged them.
+    reading = ClassifierConfig(
+        features=meta.get("features", "estimate"),
+        segment=meta.get("segment", 0),
+        runs=meta.get("runs", "average"),
+    )
+    features, owner = classifier_inputs(predictor, recording.to_episodes(), reading)
+    probs = np.exp(episode_log_probs(model, features, owner, len(recording.episodes)))
+    lines, right = [], 0
+    for episode, p in zip(recording.episodes, probs, strict=True):
+        guess = classes[int(p.argmax())]
+        truth = episode.get("label")
+        right += guess == truth
+        mark = "" if truth is None else f"  (label {truth}{', right' if guess == truth else ''})"
+        lines.append(f"{episode['id']}: {guess}  p={p.max():.2f}{mark}")
+    known = sum(e.get("label") is not None for e in recording.episodes)
+    if known:
+        lines.append(f"accuracy on the {known} labelled episode(s): {100 * right / known:.1f} %")
+    return lines

@@ -1,0 +1,177 @@
+"""`masspush run`: estimation episodes through a robot backend, reported push by push, and
+optionally written to a recording."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from masspush.config import check_int, check_output
+from masspush.data.recording import Recording, read_recording, write_recording
+from masspush.learn.policy import model_policy
+from masspush.learn.predictor import load_model
+from masspush.models import resolve_model
+from masspush.real.backends import BACKENDS, RecordedPolicy, make_robot
+from masspush.real.robot import fmt, print_push, run_segments
+from masspush.settings import Setting, get_setting
+from masspush.sim.pushers import PUSHERS
+
+
+@dataclass(frozen=True)
+class SessionConfig:
+    """`masspush run`: estimation episodes through a robot backend (simulated or replayed)."""
+
+    robot: str
+    """The backend: stiff, kuka, ur10 (simulated), target (the sim-to-real world) or replay."""
+    setting: str
+    """Named setting, e.g. 2link-0.1-1."""
+    model: str = "tp+"
+    """Shipped model name (rp, rp+, tp, tp+) or a model file."""
+    episodes_file: str | None = None
+    """replay: the recording to play."""
+    count: int | None = None
+    """Episodes to run (default: 1; replay: all of the recording's)."""
+    pushes: int | None = None
+    """Pushes per episode (per run with --segments; default: the setting's)."""
+    seed: int = 0
+    """The simulated chains' first seed (episode i has seed + i)."""
+    record: str | None = None
+    """Write the session to this recording (appended to one of the same setting)."""
+    masses: tuple[float, ...] | None = None
+    """Simulated robots: pin the link masses, kg (m1,m2,...)."""
+    label: str | None = None
+    """Class label written into the recording."""
+    segments: int = 1
+    """Run the policy this many times in a row on each chain (each --pushes pushes) and
+    average the runs' estimates."""
+    lab: int | None = None
+    """target: keep one lab's table, calibration, robot and chains (drawn from this seed)
+    for every episode."""
+    settings_file: str | None = None
+    """TOML file with custom settings."""
+
+    def __post_init__(self) -> None:
+        known = (*PUSHERS, *BACKENDS)
+        if self.robot not in known:
+            raise ValueError(f"robot must be one of {list(known)}, got {self.robot!r}")
+        check_int("count", self.count, optional=True)
+        check_int("pushes", self.pushes, optional=True)
+        check_int("seed", self.seed, 0)
+        check_int("segments", self.segments)
+        check_int("lab", self.lab, 0, optional=True)
+        if self.lab is not None and self.robot != "target":
+            raise ValueError(f"lab is one draw of the target world; robot {self.robot!r} has none")
+        if self.robot == "replay":
+            if self.episodes_file is None:
+                raise ValueError("the replay backend needs --episodes-file (a recording)")
+            if self.masses is not None:
+                raise ValueError("masses pins a simulated chain's masses; a replay has its own")
+            if self.segments != 1:
+                raise ValueError(
+                    "segments runs the policy again; a replay plays its recorded pushes"
+                )
+        if self.masses is not None and not all(np.isfinite(m) and m > 0 for m in self.masses):
+            raise ValueError(f"masses must be positive, got {list(self.masses)}")
+        if self.label is not None and not self.label.isprintable():
+            raise ValueError(f"label must be printable text, got {self.label!r}")
+        if self.record is not None:
+            check_output(self.record, "record")
+
+
+def run_session(config: SessionConfig, say=print) -> list[dict]:
+    """Run the episodes, `say`ing each push and estimate; returns the episodes as a
+    recording's (written to `config.record` where given)."""
+    setting = get_setting(config.setting, config.settings_file)
+    if config.masses is not None and len(config.masses) != setting.n_links:
+        raise ValueError(f"masses: {len(config.masses)} given, setting has {setting.n_links} links")
+    existing = _recording_to_extend(config.record, setting)
+    path = resolve_model(config.model, setting.name)
+    predictor, meta = load_model(path, setting.name)
+    robot = make_robot(
+        config.robot, setting, config.episodes_file, config.seed, config.masses, config.lab
+    )
+    if robot.n_links != setting.n_links:
+        robot.close()
+        raise ValueError(
+            f"the robot's chain has {robot.n_links} links, setting {setting.name!r} has "
+            f"{setting.n_links}"
+        )
+    if config.robot == "replay":
+        _check_replay(robot.recording, setting, config)
+        policy = RecordedPolicy(robot)
+        count = len(robot.recording.episodes) if config.count is None else config.count
+        say(f"Replaying {count} recorded episode(s) with their recorded pushes.")
+    else:
+        policy, count = model_policy(meta, path), config.count or 1
+        say(f"Pushes chosen by the {policy.name} policy of model {config.model!r}.")
+    pushes = setting.env_config().pushes if config.pushes is None else config.pushes
+    recorded = []
+    try:
+        for i in range(count):
+            say(f"episode {i + 1}:")
+            episode = run_segments(
+                robot, predictor, policy, pushes, config.segments, print_push,
+                seed=config.seed + i,
+            )  # fmt: skip
+            if len(episode.run_estimates) > 1:
+                mean = np.mean(episode.run_estimates, axis=0)
+                say(f"  estimate {fmt(mean)}, averaged over {len(episode.run_estimates)} runs")
+            truth = getattr(robot, "truth", {})
+            if "mass_distribution" in truth:
+                say(f"  truth    {fmt(truth['mass_distribution'])}")
+            recorded.append(episode.recorded(id="", masses=truth.get("masses"), label=config.label))
+    finally:
+        robot.close()
+    if config.record:
+        robot_name = f"masspush simulation ({config.robot})"
+        written, total = _record(config.record, existing, setting, robot_name, recorded)
+        say(f"recorded {written} episode(s) to {config.record} ({total} in all)")
+    return recorded
+
+
+def _check_replay(recording: Recording, setting: Setting, config: SessionConfig) -> None:
+    """A replay plays its recording's pushes as they were: the recording must be of this
+    setting and hold no more pushes per episode than asked for."""
+    if recording.setting is not None and recording.setting != setting.name:
+        raise ValueError(
+            f"{config.episodes_file} was recorded in setting {recording.setting!r}, "
+            f"not {setting.name!r}"
+        )
+    if config.count is not None and config.count > len(recording.episodes):
+        raise ValueError(
+            f"count: {config.episodes_file} holds {len(recording.episodes)} episode(s), "
+            f"not {config.count}"
+        )
+
+
+def _recording_to_extend(path: str | None, setting: Setting) -> Recording | None:
+    """The recording a session will append to, checked before any push: of this setting."""
+    if path is None or not Path(path).exists():
+        return None
+    recording = read_recording(path)
+    if recording.n_links != setting.n_links or (
+        recording.setting is not None and recording.setting != setting.name
+    ):
+        raise ValueError(
+            f"{path} holds episodes of setting {recording.setting!r} "
+            f"({recording.n_links} links); not appending episodes of {setting.name!r}"
+        )
+    return recording
+
+
+def _record(
+    path: str, recording: Recording | None, setting: Setting, robot: str, episodes: list[dict]
+) -> tuple[int, int]:
+    """Write episodes to a recording, appending to `recording` where the file exists (one
+    file can then gather several runs, e.g. one per labelled class)."""
+    usable = [e for e in episodes if len(e["actions"])]
+    if recording is None:
+        recording = Recording(n_links=setting.n_links, robot=robot, setting=setting.name)
+    start = len(recording.episodes)
+    for i, e in enumerate(usable):
+        e["id"] = f"{e.get('label') or 'episode'}-{start + i + 1:04d}"
+    recording.episodes.extend(usable)
+    write_recording(path, recording)
+    return len(usable), len(recording.episodes)
