@@ -29,6 +29,7 @@ from masspush.data.rollout import EVAL, Episodes, episode_seed
 from masspush.env import ChainEnv
 from masspush.learn.uncertainty import LearnedPosterior
 from masspush.metrics import percentage_error
+from masspush.models import resolve_model
 from masspush.settings import get_setting
 
 

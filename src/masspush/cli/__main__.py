@@ -1,0 +1,5 @@
+import sys
+
+from masspush.cli import main
+
+sys.exit(main())
