@@ -35,3 +35,21 @@ def predictor_file(tmp_path_factory):
     )
     train_predictor(episodes, run, train, {"setting": {"name": "2link-0.1-1"}}, progress=False)
     return run / "predictor.pt"
+
+
+@pytest.fixture(scope="session")
+def model_file(tmp_path_factory):
+    """An untrained 2link-0.1-1 predictor with a random policy, for evaluation tests."""
+    from masspush.config import EnvConfig
+    from masspush.data.rollout import TRAIN, RandomPolicy, run_batch
+    from masspush.learn.predictor import MassPredictor, save_model, step_inputs
+    from masspush.settings import get_setting
+
+    setting = get_setting("2link-0.1-1")
+    eps = run_batch(EnvConfig(physics=setting.physics()), RandomPolicy(), np.arange(50), TRAIN, 0)
+    q0, steps = step_inputs(eps.select(eps.ok), "relative")
+    model = MassPredictor(2, q0.shape[1], steps.shape[2], "relative")
+    model.set_normaliser(q0, steps)
+    path = tmp_path_factory.mktemp("m") / "model.pt"
+    save_model(path, model, {"setting": setting.as_dict(), "pusher": "stiff", "policy": "random"})
+    return path

@@ -2,30 +2,13 @@ import json
 import subprocess
 import sys
 
-import numpy as np
 import pytest
 
-import masspush.models as models_module
-from masspush.config import EnvConfig
-from masspush.data.rollout import TRAIN, RandomPolicy, run_batch
 from masspush.evaluate import EvaluateConfig, evaluate
-from masspush.learn.predictor import MassPredictor, load_model, save_model, step_inputs
-from masspush.models import SHIPPED_DIR, evaluate_model, resolve_model
+from masspush.models import evaluate_model
 from masspush.settings import get_setting
 
 KEYS = {"percentage_error", "relative_error", "mae", "constant_floor", "episodes", "failures"}
-
-
-@pytest.fixture(scope="module")
-def model_file(tmp_path_factory):
-    setting = get_setting("2link-0.1-1")
-    eps = run_batch(EnvConfig(physics=setting.physics()), RandomPolicy(), np.arange(50), TRAIN, 0)
-    q0, steps = step_inputs(eps.select(eps.ok), "relative")
-    model = MassPredictor(2, q0.shape[1], steps.shape[2], "relative")
-    model.set_normaliser(q0, steps)
-    path = tmp_path_factory.mktemp("m") / "model.pt"
-    save_model(path, model, {"setting": setting.as_dict(), "pusher": "stiff", "policy": "random"})
-    return path
 
 
 def test_evaluate_json_has_the_documented_keys(model_file):
@@ -68,39 +51,6 @@ def test_evaluation_is_deterministic_and_seeded(model_file):
         EvaluateConfig("2link-0.1-1", str(model_file), episodes=20, seed=2)
     ).to_dict()
     assert a == b and a["mae"] != c["mae"]
-
-
-def test_unknown_models_are_clear_errors(model_file, tmp_path, monkeypatch):
-    with pytest.raises(ValueError, match="no model file"):
-        resolve_model(tmp_path / "missing.pt", "2link-0.1-1")
-    shipped = tmp_path / "models"
-    (shipped / "2link-0.1-1").mkdir(parents=True)
-    (shipped / "2link-0.1-1" / "rp.pt").write_bytes(b"")
-    monkeypatch.setattr(models_module, "SHIPPED_DIR", shipped)
-    with pytest.raises(ValueError, match=r"no shipped 'tp' model .*shipped for it: \['rp'\]"):
-        resolve_model("tp", "2link-0.1-1")
-    with pytest.raises(ValueError, match="trained for setting"):
-        evaluate_model(EvaluateConfig("3link-0.1-1", str(model_file), episodes=2)).to_dict()
-
-
-def test_every_shipped_model_loads_by_name_with_its_policy():
-    from masspush.learn.policy import model_policy
-    from masspush.learn.uncertainty import load_head
-    from masspush.settings import KNOWN_SETTINGS, SETTINGS
-
-    for name in SETTINGS:  # the paper's six: all four models of Table 1
-        for model in ("rp", "rp+", "tp", "tp+"):
-            assert (SHIPPED_DIR / name / f"{model}.pt").exists(), (name, model)
-    for name in KNOWN_SETTINGS:
-        for path in sorted((SHIPPED_DIR / name).glob("*.pt")):
-            if path.name.endswith(".dirichlet.pt"):
-                load_head(path, name)
-                continue
-            _, meta = load_model(resolve_model(path.stem, name), name)
-            policy = model_policy(meta, path)  # a learned one loads its shipped policy file
-            expected = "random" if path.stem.startswith("rp") else "learned"
-            assert meta.get("policy", "random") == expected, (name, path.name)
-            assert (policy.name == "random") == (expected == "random")
 
 
 def test_per_episode_records_pair_a_learned_model_with_the_filter(model_file):

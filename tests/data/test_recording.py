@@ -110,5 +110,5 @@ def test_writing_refuses_what_could_not_be_read_back(tmp_path):
 def test_the_example_recording_is_valid():
     from pathlib import Path
 
-    example = Path(__file__).parents[1] / "docs" / "examples" / "recording.jsonl"
+    example = Path(__file__).parents[2] / "docs" / "examples" / "recording.jsonl"
     assert check_recording(example) == []
