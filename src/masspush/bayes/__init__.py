@@ -2,30 +2,17 @@
 simulator (`filter`), the arm scenes it simulates arms in (`arm_scenes`), and the filter as
 an estimator of `masspush.evaluate` (`estimator`).
 
-The names of the 0.1 module `masspush.bayes` are importable from here."""
+The names below are its public API (what experiments/ may import); those of the 0.1 module
+`masspush.bayes` are among them."""
 
-from masspush.bayes.estimator import BAYES_MODELS, BayesEstimator, run_bayes_episode
-from masspush.bayes.filter import (
-    ARM_CONFIG,
-    BayesConfig,
-    InfoSeekingPolicy,
-    ParticleFilter,
-    Posterior,
-    UnexplainedObservationWarning,
-    default_config,
-    filter_for,
-)
+from masspush._exports import lazy, names
 
-__all__ = [
-    "ARM_CONFIG",
-    "BAYES_MODELS",
-    "BayesConfig",
-    "BayesEstimator",
-    "InfoSeekingPolicy",
-    "ParticleFilter",
-    "Posterior",
-    "UnexplainedObservationWarning",
-    "default_config",
-    "filter_for",
-    "run_bayes_episode",
-]
+EXPORTS = {
+    "filter": ("ARM_CONFIG", "ARM_MAX_PUSH", "ARM_SURROGATE", "BayesConfig", "InfoSeekingPolicy",
+               "ParticleFilter", "Posterior", "UnexplainedObservationWarning", "bayes_overrides",
+               "config_difference", "default_config", "failure_floor", "filter_for"),
+    "estimator": ("BAYES_MODELS", "BayesEstimator", "run_bayes_episode"),
+    "arm_scenes": ("ArmScene", "ArmSimulator"),
+}  # fmt: skip
+__getattr__ = lazy(__name__, EXPORTS)
+__all__ = names(EXPORTS)

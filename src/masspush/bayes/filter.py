@@ -239,7 +239,7 @@ class ParticleFilter:
 
     def posterior(self, w: np.ndarray | None = None) -> Posterior:
         """The estimate and intervals under normalised weights `w` (the particles' own by
-        default; `scripts/pool_learned.py` passes others)."""
+        default; `experiments/bayes/pool_learned.py` passes others)."""
         w = self.weights if w is None else w
         shares = self.shares()
         tail = (1 - self.config.credible) / 2
@@ -594,7 +594,7 @@ ARM_SURROGATE: dict[str, dict[str, float]] = {"kuka": {"push_speed_max": 3.0}}
 """With `arm_model="surrogate"`, the filter simulates a stiff pusher that reproduces the
 arm's pushes best: the KR 5 moves a chain as a stiff pusher at 0.6 of the commanded speed
 would (its operational-space controller lags the commanded velocity during the short
-contact). Fitted by `scripts/fit_arm_surrogate.py` over speed scale, hold and ramp time
+contact). Fitted by `experiments/bayes/fit_arm_surrogate.py` over speed scale, hold and ramp time
 (docs/bayes.md)."""
 
 

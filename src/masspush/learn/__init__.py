@@ -1,0 +1,20 @@
+"""Learning: the LSTM predictor (`predictor`), what the policy sees and earns (`features`),
+the PPO policy (`policy`, `vec_env`), the predictor as an estimator (`estimator`), learned
+uncertainty (`uncertainty`) and the paper's alternating recipe (`recipe`).
+
+The names below are its public API (what experiments/ may import)."""
+
+from masspush._exports import lazy, names
+
+EXPORTS = {
+    "predictor": ("FAST", "MassPredictor", "TrainConfig", "load_model", "save_model",
+                  "train_predictor"),
+    "features": ("history_dim", "history_features", "paper_reward"),
+    "policy": ("LearnedPolicy", "PolicyConfig", "PushPolicyEnv", "model_policy", "train_policy"),
+    "vec_env": ("BatchPushVecEnv",),
+    "estimator": ("PredictorEstimator",),
+    "uncertainty": ("HeadConfig", "LearnedPosterior", "calibrate"),
+    "recipe": ("FINETUNE", "PREDICTOR", "Recipe", "RecipeConfig"),
+}  # fmt: skip
+__getattr__ = lazy(__name__, EXPORTS)
+__all__ = names(EXPORTS)

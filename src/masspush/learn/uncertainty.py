@@ -146,7 +146,7 @@ def coverage(
 
 class LearnedPosterior:
     """A trained predictor with its Dirichlet head, read as a density over the mass
-    distribution given an episode's history (what `scripts/pool_learned.py` pools with the
+    distribution given an episode's history (what `experiments/bayes/pool_learned.py` pools with the
     particle filter's posterior)."""
 
     def __init__(self, predictor: MassPredictor, head: PrecisionHead):

@@ -1,41 +1,29 @@
-"""The real-robot path: the robot interface and its backends, recorded sessions, the
-classifier fine-tuned on real episodes, the sim-to-real test world and domain randomisation.
+"""The real-robot path: the robot interface (`robot`) and its backends (`backends`), a session
+through a robot (`session`), the classifier fine-tuned on real episodes (`finetune`,
+`classify`), the sim-to-real test world (`target_world`, `sim2real`) and domain
+randomisation (`randomise`, `robot_env`).
 
-The names of the 0.1 module `masspush.robot` are importable from here (`masspush.robot`
-itself still imports, as this package)."""
+The names below are its public API (what experiments/ may import); those of the 0.1 module
+`masspush.robot` are among them (`masspush.robot` itself still imports, as this package)."""
 
-from masspush.real.backends import (
-    BACKENDS,
-    RecordedPolicy,
-    ReplayMismatchError,
-    ReplayRobot,
-    SimRobot,
-    make_robot,
-)
-from masspush.real.robot import (
-    EstimationEpisode,
-    PushReport,
-    RestPose,
-    Robot,
-    fmt,
-    print_push,
-    run_estimation,
-    run_segments,
-)
+from masspush._exports import lazy, names
 
-__all__ = [
-    "BACKENDS",
-    "EstimationEpisode",
-    "PushReport",
-    "RecordedPolicy",
-    "ReplayMismatchError",
-    "ReplayRobot",
-    "RestPose",
-    "Robot",
-    "SimRobot",
-    "fmt",
-    "make_robot",
-    "print_push",
-    "run_estimation",
-    "run_segments",
-]
+EXPORTS = {
+    "robot": ("EstimationEpisode", "PushReport", "RestPose", "Robot", "fmt", "print_push",
+              "run_estimation", "run_segments"),
+    "backends": ("BACKENDS", "RecordedPolicy", "ReplayMismatchError", "ReplayRobot", "SimRobot",
+                 "make_robot"),
+    "session": ("SessionConfig", "run_session"),
+    "finetune": ("PAPER_CLASSES", "ClassifierConfig", "classifier_inputs", "cross_validate",
+                 "episode_log_probs", "fit_classifier", "labelled", "predictor_features"),
+    "classify": ("ClassifyJob", "FinetuneJob", "classify", "finetune"),
+    "target_world": ("TRAINING_KNOBS", "Lab", "TargetWorld", "TargetWorldRobot", "WorldRanges",
+                     "scaled_world"),
+    "sim2real": ("ARMS", "FEATURE_KINDS", "FEATURE_NAMES", "Sim2RealConfig", "Sim2RealJob",
+                 "paired_test", "plot_accuracy_by_pushes", "record_arm", "record_classes",
+                 "run_sim2real", "score_arm", "sim2real"),
+    "randomise": ("RandomiseConfig", "RandomiseRun", "randomise", "run_randomised"),
+    "robot_env": ("RobotEnv",),
+}  # fmt: skip
+__getattr__ = lazy(__name__, EXPORTS)
+__all__ = names(EXPORTS)

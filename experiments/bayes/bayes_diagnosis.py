@@ -16,9 +16,9 @@ micro-state: the same pushes, the true chain started from the world's own state 
     height, tilt and residual velocities at rest, which no observation gives) or from parts
     of it: what makes `fidelity`'s inexact pushes inexact.
 
-    python scripts/bayes_diagnosis.py on-pushes --setting 2link-0.1-10 --model tp+ --episodes 60
-    python scripts/bayes_diagnosis.py fidelity --setting 2link-0.1-10 --pushes 60
-    python scripts/bayes_diagnosis.py micro-state --setting 2link-0.1-10 --pushes 60
+    python experiments/bayes/bayes_diagnosis.py on-pushes --setting 2link-0.1-10 --model tp+ --episodes 60
+    python experiments/bayes/bayes_diagnosis.py fidelity --setting 2link-0.1-10 --pushes 60
+    python experiments/bayes/bayes_diagnosis.py micro-state --setting 2link-0.1-10 --pushes 60
 """
 
 from __future__ import annotations
@@ -31,21 +31,24 @@ from statistics import NormalDist
 
 import numpy as np
 
-from masspush.bayes import filter as bayes
-from masspush.bayes.filter import UnexplainedObservationWarning, config_difference, default_config
-from masspush.cli import bayes_options
+import masspush.bayes as bayes
+from masspush.bayes import (
+    UnexplainedObservationWarning,
+    bayes_overrides,
+    config_difference,
+    default_config,
+)
 from masspush.settings import get_setting
 
 
 def on_pushes(args: argparse.Namespace) -> None:
     from masspush.metrics import percentage_error
     from masspush.models import model_and_policy
-    from masspush.real.backends import SimRobot
-    from masspush.real.robot import run_estimation
+    from masspush.real import SimRobot, run_estimation
 
     setting = get_setting(args.setting)
     predictor, _, policy = model_and_policy(args.model, setting.name)
-    config = replace(default_config(setting), **(bayes_options(args.bayes) or {}))
+    config = replace(default_config(setting), **(bayes_overrides(args.bayes) or {}))
     filt = bayes.filter_for(setting, config=config, seed=1)
     if args.replicas:
         _pseudo_marginal(filt, args.replicas)
@@ -138,7 +141,7 @@ def micro_state(args: argparse.Namespace) -> None:
     import mujoco
 
     from masspush.env import ChainEnv
-    from masspush.sim.simulate import ChainSim
+    from masspush.sim import ChainSim
 
     setting = get_setting(args.setting)
     if setting.pusher != "stiff":

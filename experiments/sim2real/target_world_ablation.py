@@ -1,7 +1,7 @@
 """Which of the target world's differences spread the learned estimate? The analysis behind
 "Where the gap comes from" in docs/results.md (sim-to-real).
 
-    python scripts/target_world_ablation.py [--setting real-ur10-4push] [--model tp+]
+    python experiments/sim2real/target_world_ablation.py [--setting real-ur10-4push] [--model tp+]
         [--episodes 40] [--groups none,all,solver,friction,...]
 
 For each group, the target world with that group's knobs put back to the training world's
@@ -20,9 +20,14 @@ from dataclasses import replace
 import numpy as np
 
 from masspush.models import model_and_policy
-from masspush.real.finetune import PAPER_CLASSES
-from masspush.real.robot import run_estimation
-from masspush.real.target_world import TRAINING_KNOBS, TargetWorld, TargetWorldRobot, scaled_world
+from masspush.real import (
+    PAPER_CLASSES,
+    TRAINING_KNOBS,
+    TargetWorld,
+    TargetWorldRobot,
+    run_estimation,
+    scaled_world,
+)
 from masspush.settings import get_setting
 
 GROUPS = {

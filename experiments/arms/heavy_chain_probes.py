@@ -1,6 +1,6 @@
 """Why do the arms barely move heavy (1-10 kg links) chains? Three probes.
 
-    python scripts/heavy_chain_probes.py [--pushes 60]
+    python experiments/arms/heavy_chain_probes.py [--pushes 60]
 
 Each probe pushes the same 60 random 2-link chains (masses in [1, 10] kg, and [0.1, 1] kg
 for comparison) with the same random actions and prints how far the root link moved:
@@ -19,10 +19,7 @@ import mujoco
 import numpy as np
 
 from masspush.config import PhysicsConfig
-from masspush.sim.chain import sample_chain
-from masspush.sim.pushers import make_pusher
-from masspush.sim.pushers.arm import ArmPusher
-from masspush.sim.simulate import ChainSim
+from masspush.sim import ArmPusher, ChainSim, make_pusher, sample_chain
 
 ARMATURE = np.array([0.7, 0.7, 0.4, 0.1, 0.1, 0.05])  # kg m^2, geared industrial joints
 

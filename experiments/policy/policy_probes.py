@@ -6,9 +6,9 @@ landscape: the paper's reward, summed over an episode, when every push is the sa
 fixed: a fixed push sequence, and a predictor fine-tuned on 8k episodes of it, evaluated on
     800 fresh episodes: what consistent pushes alone are worth.
 
-    python scripts/policy_probes.py landscape --setting 2link-1-10 \
+    python experiments/policy/policy_probes.py landscape --setting 2link-1-10 \
         --predictor runs/2link-1-10-stiff-train/predictor-0/predictor.pt
-    python scripts/policy_probes.py fixed --setting 2link-1-10 \
+    python experiments/policy/policy_probes.py fixed --setting 2link-1-10 \
         --predictor runs/2link-1-10-stiff-train/predictor-0/predictor.pt \
         --sequence "1,-0.9;1,0.9"
 """
@@ -21,10 +21,8 @@ import tempfile
 import numpy as np
 
 from masspush.config import EnvConfig
-from masspush.data.dataset import collect, load_dataset
-from masspush.data.rollout import EVAL, run_episodes
-from masspush.learn.predictor import load_model, train_predictor
-from masspush.learn.recipe import FINETUNE
+from masspush.data import EVAL, collect, load_dataset, run_episodes
+from masspush.learn import FINETUNE, load_model, train_predictor
 from masspush.metrics import percentage_error
 from masspush.settings import get_setting
 
@@ -44,7 +42,7 @@ class FixedPolicy:
 
 
 def landscape(setting: str, predictor: str, envs: int) -> None:
-    from masspush.learn.vec_env import BatchPushVecEnv
+    from masspush.learn import BatchPushVecEnv
 
     spec = get_setting(setting)
     env = BatchPushVecEnv(EnvConfig(physics=spec.physics(), pusher="stiff"), predictor, envs, 3)

@@ -1,7 +1,7 @@
 """Is the sim-to-real gap the learned predictor's, or any estimator's? The analysis behind
 "The particle filter on the same recordings" in docs/results.md (sim-to-real).
 
-    python scripts/target_world_filter.py [--recording results/sim2real-4push/learned.jsonl]
+    python experiments/sim2real/target_world_filter.py [--recording results/sim2real-4push/learned.jsonl]
         [--episodes 30] [--cache results/sim2real-4push/learned.filter.json]
 
 The particle filter (`masspush.bayes.filter`, simulating the UR10 in the training world's physics)
@@ -25,11 +25,11 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from masspush.bayes import filter as bayes
-from masspush.data.recording import read_recording
-from masspush.learn.predictor import load_model
+import masspush.bayes as bayes
+from masspush.data import read_recording
+from masspush.learn import load_model
 from masspush.models import resolve_model
-from masspush.real.finetune import ClassifierConfig, cross_validate, labelled, predictor_features
+from masspush.real import ClassifierConfig, cross_validate, labelled, predictor_features
 from masspush.settings import get_setting
 
 

@@ -1,6 +1,6 @@
 """Time the particle filter's arm push (`ArmScene.push`): milliseconds per push, one core.
 
-    python scripts/time_arm_push.py --setting 3link-0.1-1 [--pushes 40] [--profile]
+    python experiments/bayes/time_arm_push.py --setting 3link-0.1-1 [--pushes 40] [--profile]
 
 To compare two versions, run it under each back to back (e.g. an older checkout's src on
 PYTHONPATH), with nothing else running: this machine's speed drifts by tens of percent.
@@ -16,8 +16,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from masspush.bayes.arm_scenes import ArmScene
-from masspush.bayes.filter import BayesConfig
+from masspush.bayes import ArmScene, BayesConfig
 from masspush.settings import get_setting
 
 

@@ -4,7 +4,7 @@
 # comparisons. The filter's first 100 of 300 episodes are its 100-episode run (its random
 # streams carry over from episode to episode, so the runs agree where they overlap).
 # Resumable: a setting whose two files exist is skipped; rerun after a kill.
-#   SETTINGS="2link-0.1-1 2link-0.1-10" EPISODES=300 scripts/paired.sh
+#   SETTINGS="2link-0.1-1 2link-0.1-10" EPISODES=300 experiments/bayes/paired.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source .venv/bin/activate

@@ -1,7 +1,7 @@
 """Would more pushes per episode close the sim-to-real gap? The analysis behind "More pushes
 of the same episode" in docs/results.md (sim-to-real).
 
-    python scripts/target_world_segments.py [--setting real-ur10-4push] [--model tp+]
+    python experiments/sim2real/target_world_segments.py [--setting real-ur10-4push] [--model tp+]
         [--episodes 30] [--segments 4] [--worlds target,training] [--severity 1] [--lab SEED]
 
 Each episode runs the learned policy for `--segments` consecutive segments of the setting's
@@ -24,10 +24,15 @@ import time
 import numpy as np
 
 from masspush.models import model_and_policy
-from masspush.real.backends import SimRobot
-from masspush.real.finetune import PAPER_CLASSES, ClassifierConfig, cross_validate
-from masspush.real.robot import run_segments
-from masspush.real.target_world import TargetWorldRobot, scaled_world
+from masspush.real import (
+    PAPER_CLASSES,
+    ClassifierConfig,
+    SimRobot,
+    TargetWorldRobot,
+    cross_validate,
+    run_segments,
+    scaled_world,
+)
 from masspush.settings import get_setting
 
 CLASSES = ("0.160-0.160", "0.064-0.192", "0.064-0.256")

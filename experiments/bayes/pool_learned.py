@@ -8,7 +8,7 @@ scores every power. Power 0 is the filter alone; the last row is the learned mod
 estimate (its Dirichlet's mean) on the filter's pushes. The model needs a Dirichlet head
 (TP+ ships one; for another, `masspush calibrate --setting S --model rp+` first).
 
-    python scripts/pool_learned.py --setting 2link-0.1-10 --model tp+ --seed 1 --episodes 40
+    python experiments/bayes/pool_learned.py --setting 2link-0.1-10 --model tp+ --seed 1 --episodes 40
 """
 
 from __future__ import annotations
@@ -19,15 +19,15 @@ import warnings
 
 import numpy as np
 
-from masspush.bayes.filter import (
+from masspush.bayes import (
     InfoSeekingPolicy,
     UnexplainedObservationWarning,
     filter_for,
     run_bayes_episode,
 )
-from masspush.data.rollout import EVAL, Episodes, episode_seed
+from masspush.data import EVAL, Episodes, episode_seed
 from masspush.env import ChainEnv
-from masspush.learn.uncertainty import LearnedPosterior
+from masspush.learn import LearnedPosterior
 from masspush.metrics import percentage_error
 from masspush.models import resolve_model
 from masspush.settings import get_setting

@@ -12,7 +12,7 @@ A design whose estimate spreads less within a class in the target world is the p
 policy trained in randomised worlds should learn. Work files (episodes, predictors) go to
 --work and are reused by a rerun.
 
-    python scripts/push_design_probe.py --designs tp+ strong-centres   # ~5 min a design
+    python experiments/sim2real/push_design_probe.py --designs tp+ strong-centres   # ~5 min a design
 """
 
 from __future__ import annotations
@@ -26,13 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-from masspush.data.rollout import Episodes, RandomPolicy
-from masspush.real.finetune import (
-    PAPER_CLASSES,
-    ClassifierConfig,
-    cross_validate,
-    predictor_features,
-)
+from masspush.data import Episodes, RandomPolicy
+from masspush.real import PAPER_CLASSES, ClassifierConfig, cross_validate, predictor_features
 
 SETTING = "real-ur10-4push"
 
@@ -85,8 +80,7 @@ def _collect_job(args) -> Episodes:
     import torch
 
     from masspush.models import resolve_model
-    from masspush.real.randomise import run_randomised
-    from masspush.real.target_world import WorldRanges
+    from masspush.real import WorldRanges, run_randomised
 
     torch.set_num_threads(1)
     design, indices, base_seed = args
@@ -95,7 +89,7 @@ def _collect_job(args) -> Episodes:
 
 
 def collect(design: str, episodes: int, path: Path, workers: int) -> Episodes:
-    from masspush.data.dataset import read_shard, write_shard
+    from masspush.data import read_shard, write_shard
 
     if path.exists():
         return read_shard(path)
@@ -110,7 +104,7 @@ def collect(design: str, episodes: int, path: Path, workers: int) -> Episodes:
 def target_episodes(design: str, predictor, per_class: int):
     """The paper's protocol in the target world with this design; seeds as `sim2real`."""
     from masspush.models import model_and_policy
-    from masspush.real.sim2real import Sim2RealConfig, record_classes
+    from masspush.real import Sim2RealConfig, record_classes
 
     policy = make_policy(design) or model_and_policy("tp+", SETTING)[2]
     config = Sim2RealConfig(setting=SETTING, episodes_per_class=per_class)
@@ -120,8 +114,7 @@ def target_episodes(design: str, predictor, per_class: int):
 
 
 def probe(design: str, args) -> dict:
-    from masspush.learn.predictor import MassPredictor, train_predictor
-    from masspush.learn.recipe import PREDICTOR
+    from masspush.learn import PREDICTOR, MassPredictor, train_predictor
     from masspush.metrics import percentage_error
 
     work = Path(args.work) / design

@@ -1,6 +1,6 @@
 """Which stiff push reproduces an arm's push best? The fit behind `bayes.ARM_SURROGATE`.
 
-    python scripts/fit_arm_surrogate.py [--setting 2link-0.1-1] [--arm kuka] [--pushes 150]
+    python experiments/bayes/fit_arm_surrogate.py [--setting 2link-0.1-1] [--arm kuka] [--pushes 150]
         [--max-push 0.15] [--scales 0.5,0.6,0.7,0.8,1.0] [--holds 0.01] [--ramps 0,0.005]
 
 Pushes `--pushes` random chains of the setting once each with the arm, without noise, at
@@ -17,11 +17,10 @@ from dataclasses import replace
 import numpy as np
 from tqdm import tqdm
 
-from masspush.bayes.filter import ARM_MAX_PUSH, config_difference
+from masspush.bayes import ARM_MAX_PUSH, config_difference
 from masspush.env import ChainEnv
 from masspush.settings import get_setting
-from masspush.sim.batch import ChainBatch
-from masspush.sim.chain import ChainParams
+from masspush.sim import ChainBatch, ChainParams
 
 
 def arm_pushes(setting, arm: str, pushes: int, max_push: float, seed: int = 0) -> list[tuple]:

@@ -1,7 +1,7 @@
 """How close to the simulation must a lab be? The analysis behind "How close to the
 simulation a lab must be" in docs/results.md (sim-to-real).
 
-    python scripts/target_world_severity.py [--setting real-ur10-4push] [--model tp+]
+    python experiments/sim2real/target_world_severity.py [--setting real-ur10-4push] [--model tp+]
         [--rows solver-and-cones,...] [--out results/sim2real-4push-severity/split]
 
 `masspush sim2real --severity S` scales all of the target world's differences at once, but
@@ -18,8 +18,14 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from masspush.real.sim2real import Sim2RealConfig, record_arm, score_arm
-from masspush.real.target_world import TRAINING_KNOBS, TargetWorld, scaled_world
+from masspush.real import (
+    TRAINING_KNOBS,
+    Sim2RealConfig,
+    TargetWorld,
+    record_arm,
+    scaled_world,
+    score_arm,
+)
 
 UNSCALED = ("solver", "solver_iterations", "cone")
 """The knobs `scaled_world` cannot move by degrees (the iterations go with the solver)."""

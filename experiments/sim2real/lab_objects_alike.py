@@ -1,7 +1,7 @@
 """Does the classifier read the masses, or recognise each class's object? The check behind
 "Reading each run on its own" in docs/results.md (sim-to-real).
 
-    python scripts/lab_objects_alike.py [--labs 0,1,2,3,4] [--segments 8] [--arms learned]
+    python experiments/sim2real/lab_objects_alike.py [--labs 0,1,2,3,4] [--segments 8] [--arms learned]
         [--out results/sim2real-4push-lab-alike]
 
 In a lab (`target_world.Lab`) each class's object has centres of mass of its own, up to the
@@ -19,9 +19,7 @@ from unittest import mock
 
 import numpy as np
 
-from masspush.real.finetune import PAPER_CLASSES
-from masspush.real.sim2real import ARMS, Sim2RealConfig, record_arm, score_arm
-from masspush.real.target_world import Lab
+from masspush.real import ARMS, PAPER_CLASSES, Lab, Sim2RealConfig, record_arm, score_arm
 
 FIRST_CLASS = next(iter(PAPER_CLASSES.values()))
 LAB_OFFSETS = Lab.com_offsets

@@ -3,7 +3,7 @@ error (bias) of link 1's share, in bins of its true value, from two `masspush ev
 --json` records with per-episode estimates (the filter's always have them; a learned
 model's with --per-episode or --paired-with).
 
-    python scripts/paired_by_share.py results/paired/2link-0.1-1-bayes-300.json \\
+    python experiments/bayes/paired_by_share.py results/paired/2link-0.1-1-bayes-300.json \\
         results/paired/2link-0.1-1-tp+-300.json
 """
 

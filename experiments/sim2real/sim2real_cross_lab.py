@@ -2,7 +2,7 @@
 masses, or that lab and its five objects? The table in docs/results.md ("Reading each run
 on its own").
 
-    python scripts/sim2real_cross_lab.py results/sim2real-4push-lab-32push/{0,1,2,3,4} \\
+    python experiments/sim2real/sim2real_cross_lab.py results/sim2real-4push-lab-32push/{0,1,2,3,4} \\
         [--arm learned] [--features lstm] [--runs each]
 
 Each directory is a `masspush sim2real --lab L --segments K` output. The classifier is
@@ -19,10 +19,10 @@ from pathlib import Path
 
 import numpy as np
 
-from masspush.data.recording import read_recording
-from masspush.learn.predictor import load_model
+from masspush.data import read_recording
+from masspush.learn import load_model
 from masspush.models import resolve_model
-from masspush.real.finetune import (
+from masspush.real import (
     ClassifierConfig,
     classifier_inputs,
     episode_log_probs,
