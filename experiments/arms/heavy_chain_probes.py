@@ -10,7 +10,7 @@ for comparison) with the same random actions and prints how far the root link mo
 4. where the push goes: the impulse the KUKA's tip gives the chain during its 10 ms hold
    (pushes at half speed, 2.5 m/s), the speed that would give the whole chain, and how far
    the chain then moved.
-`--probes 4` runs only the fourth. Used in docs/results.md (baselines, heavy chains).
+`--probes 4` runs only the fourth. Used in docs/notebook (baselines, heavy chains).
 """
 
 import argparse

@@ -1,4 +1,4 @@
-"""What limits the particle filter in a setting: the probes behind docs/results.md's
+"""What limits the particle filter in a setting: the probes behind docs/notebook's
 "What limits the filter there", as commands.
 
 on-pushes: a learned model's policy pushes simulated chains (`SimRobot`, seeds from
@@ -16,7 +16,8 @@ micro-state: the same pushes, the true chain started from the world's own state 
     height, tilt and residual velocities at rest, which no observation gives) or from parts
     of it: what makes `fidelity`'s inexact pushes inexact.
 
-    python experiments/bayes/bayes_diagnosis.py on-pushes --setting 2link-0.1-10 --model tp+ --episodes 60
+    python experiments/bayes/bayes_diagnosis.py on-pushes --setting 2link-0.1-10 --model tp+
+    --episodes 60
     python experiments/bayes/bayes_diagnosis.py fidelity --setting 2link-0.1-10 --pushes 60
     python experiments/bayes/bayes_diagnosis.py micro-state --setting 2link-0.1-10 --pushes 60
 """

@@ -1,6 +1,7 @@
 """Which stiff push reproduces an arm's push best? The fit behind `bayes.ARM_SURROGATE`.
 
-    python experiments/bayes/fit_arm_surrogate.py [--setting 2link-0.1-1] [--arm kuka] [--pushes 150]
+    python experiments/bayes/fit_arm_surrogate.py [--setting 2link-0.1-1] [--arm kuka] [--pushes
+    150]
         [--max-push 0.15] [--scales 0.5,0.6,0.7,0.8,1.0] [--holds 0.01] [--ramps 0,0.005]
 
 Pushes `--pushes` random chains of the setting once each with the arm, without noise, at

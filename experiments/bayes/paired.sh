@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The filter and TP+ on the same first N evaluation episodes of every setting (seed 0; N:
-# EPISODES, 100 by default), each with its episodes' estimates, for docs/results.md's paired
+# EPISODES, 100 by default), each with its episodes' estimates, for docs/notebook's paired
 # comparisons. The filter's first 100 of 300 episodes are its 100-episode run (its random
 # streams carry over from episode to episode, so the runs agree where they overlap).
 # Resumable: a setting whose two files exist is skipped; rerun after a kill.

@@ -8,7 +8,8 @@ scores every power. Power 0 is the filter alone; the last row is the learned mod
 estimate (its Dirichlet's mean) on the filter's pushes. The model needs a Dirichlet head
 (TP+ ships one; for another, `masspush calibrate --setting S --model rp+` first).
 
-    python experiments/bayes/pool_learned.py --setting 2link-0.1-10 --model tp+ --seed 1 --episodes 40
+    python experiments/bayes/pool_learned.py --setting 2link-0.1-10 --model tp+ --seed 1 --episodes
+    40
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The measurements of docs/results.md "Sim-to-real" and "The Bayesian estimator", one after
+# The measurements of docs/notebook "Sim-to-real" and "The Bayesian estimator", one after
 # the other (each resumes or reuses what is done): rerun after a kill.
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
-# The recipe runs of docs/results.md ("TP and TP+"), one after the other: run in parallel
+# The recipe runs of docs/notebook ("TP and TP+"), one after the other: run in parallel
 # they oversubscribe the two cores (a predictor trained 7x slower beside another run).
 # Each line is resumable: rerun this script after a kill. The reduced recipes are what
-# fitted in one session's budget; docs/results.md says which setting got what.
+# fitted in one session's budget; docs/notebook says which setting got what.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source .venv/bin/activate

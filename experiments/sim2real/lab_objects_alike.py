@@ -1,7 +1,8 @@
 """Does the classifier read the masses, or recognise each class's object? The check behind
-"Reading each run on its own" in docs/results.md (sim-to-real).
+"Reading each run on its own" in docs/notebook (sim-to-real).
 
-    python experiments/sim2real/lab_objects_alike.py [--labs 0,1,2,3,4] [--segments 8] [--arms learned]
+    python experiments/sim2real/lab_objects_alike.py [--labs 0,1,2,3,4] [--segments 8] [--arms
+    learned]
         [--out results/sim2real-4push-lab-alike]
 
 In a lab (`target_world.Lab`) each class's object has centres of mass of its own, up to the

@@ -1,4 +1,4 @@
-"""Which pushes survive the sim-to-real gap? A probe for issue 6 (docs/results.md, "Sim-to-real").
+"""Which pushes survive the sim-to-real gap? A probe for issue 6 (docs/notebook, "Sim-to-real").
 
 For each push design (the learned policy, random pushes, or a fixed sequence of actions) it
 1. collects episodes of that design in worlds drawn at random (`WorldRanges`, as
@@ -12,7 +12,8 @@ A design whose estimate spreads less within a class in the target world is the p
 policy trained in randomised worlds should learn. Work files (episodes, predictors) go to
 --work and are reused by a rerun.
 
-    python experiments/sim2real/push_design_probe.py --designs tp+ strong-centres   # ~5 min a design
+    python experiments/sim2real/push_design_probe.py --designs tp+ strong-centres   # ~5 min a
+    design
 """
 
 from __future__ import annotations

@@ -1,8 +1,9 @@
 """A classifier trained on one lab's episodes, applied to another lab's: does it read the
-masses, or that lab and its five objects? The table in docs/results.md ("Reading each run
+masses, or that lab and its five objects? The table in docs/notebook ("Reading each run
 on its own").
 
-    python experiments/sim2real/sim2real_cross_lab.py results/sim2real-4push-lab-32push/{0,1,2,3,4} \\
+    python experiments/sim2real/sim2real_cross_lab.py results/sim2real-4push-lab-32push/{0,1,2,3,4}
+    \\
         [--arm learned] [--features lstm] [--runs each]
 
 Each directory is a `masspush sim2real --lab L --segments K` output. The classifier is

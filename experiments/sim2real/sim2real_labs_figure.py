@@ -2,7 +2,8 @@
 (e.g. one per lab): a figure with each run and the mean, the table as markdown, and the
 arms compared on the same chains, pooled (exact McNemar test).
 
-    python experiments/sim2real/sim2real_labs_figure.py results/sim2real-4push-lab-64push/{0,1,2,3,4} \\
+    python experiments/sim2real/sim2real_labs_figure.py
+    results/sim2real-4push-lab-64push/{0,1,2,3,4} \\
         --out results/sim2real-4push-lab-64push/accuracy-by-pushes.png
 
 Each directory's summary.json must hold `by_runs` (written by sim2real with --segments > 1;

@@ -1,5 +1,5 @@
 """Which of the target world's differences spread the learned estimate? The analysis behind
-"Where the gap comes from" in docs/results.md (sim-to-real).
+"Where the gap comes from" in docs/notebook (sim-to-real).
 
     python experiments/sim2real/target_world_ablation.py [--setting real-ur10-4push] [--model tp+]
         [--episodes 40] [--groups none,all,solver,friction,...]

@@ -1,7 +1,8 @@
 """Is the sim-to-real gap the learned predictor's, or any estimator's? The analysis behind
-"The particle filter on the same recordings" in docs/results.md (sim-to-real).
+"The particle filter on the same recordings" in docs/notebook (sim-to-real).
 
-    python experiments/sim2real/target_world_filter.py [--recording results/sim2real-4push/learned.jsonl]
+    python experiments/sim2real/target_world_filter.py [--recording
+    results/sim2real-4push/learned.jsonl]
         [--episodes 30] [--cache results/sim2real-4push/learned.filter.json]
 
 The particle filter (`masspush.bayes.filter`, simulating the UR10 in the training world's physics)

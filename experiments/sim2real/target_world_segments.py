@@ -1,5 +1,5 @@
 """Would more pushes per episode close the sim-to-real gap? The analysis behind "More pushes
-of the same episode" in docs/results.md (sim-to-real).
+of the same episode" in docs/notebook (sim-to-real).
 
     python experiments/sim2real/target_world_segments.py [--setting real-ur10-4push] [--model tp+]
         [--episodes 30] [--segments 4] [--worlds target,training] [--severity 1] [--lab SEED]

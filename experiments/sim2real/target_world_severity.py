@@ -1,5 +1,5 @@
 """How close to the simulation must a lab be? The analysis behind "How close to the
-simulation a lab must be" in docs/results.md (sim-to-real).
+simulation a lab must be" in docs/notebook (sim-to-real).
 
     python experiments/sim2real/target_world_severity.py [--setting real-ur10-4push] [--model tp+]
         [--rows solver-and-cones,...] [--out results/sim2real-4push-severity/split]

@@ -33,7 +33,7 @@ The stiff pusher stays available everywhere as the fast option (~2-3x faster per
 core, and it alone runs on the multi-threaded batch path)."""
 HEAVY_PUSHER = "stiff"
 """The pusher for the settings whose links weigh up to 10 kg. Our torque-limited KR 5 moves
-such chains a median 0.6 mm per push, below the 1 cm observation noise (docs/results.md,
+such chains a median 0.6 mm per push, below the 1 cm observation noise (docs/notebook,
 "heavy chains"), while the paper's [1, 10] kg errors (RP 17.1, near its 15.3 for [0.1, 1])
 show that its arm moved them. The stiff pusher does literally what the paper's controller
 was told to do, hold the push velocity for 10 ms of contact, whatever the chain weighs."""
@@ -110,7 +110,7 @@ joint_limit, 1.55 rad, with self-collision at pi/2) [paper-details.md, "Real rob
 
 REAL_SETTING_4 = Setting("real-ur10-4push", 2, (0.01, 0.3), pusher="ur10", pushes=4)
 """The real setup with 4 pushes per episode instead of the paper's 2 [ours]: whether more
-pushes per episode separate the paper's close mass classes (docs/results.md, Sim-to-real)."""
+pushes per episode separate the paper's close mass classes (docs/notebook, Sim-to-real)."""
 
 KNOWN_SETTINGS: dict[str, Setting] = {
     s.name: s for s in (*SETTINGS.values(), REAL_SETTING, REAL_SETTING_4)

@@ -14,7 +14,7 @@ configuration component with scale
 the observation's noise; `spread`, how far the outcome moves when a few particles are
 pushed again from a start pose and with an action jittered by the sensing and actuation
 noise (large for pushes that make the links collide); and a slack for the rest
-(docs/bayes.md; coverage measured in docs/results.md). Where an arm pushes, the filter
+(docs/bayes.md; coverage measured in docs/notebook). Where an arm pushes, the filter
 simulates the arm itself, one chain at a time on every core (`masspush.bayes.arm_scenes`), or
 optionally the stiff pusher fitted to it on the batch path (`ARM_SURROGATE`).
 
@@ -65,7 +65,7 @@ class BayesConfig:
     motion_slack: float | None = None
     """Extra likelihood scale per unit of predicted change of a component; None: 0.05 for
     two links, 0.1 for longer chains, whose outcomes hang on more contacts between links
-    (chosen on the tuning episodes, seed 1, for 90 % intervals; docs/results.md)."""
+    (chosen on the tuning episodes, seed 1, for 90 % intervals; docs/notebook)."""
     ess_fraction: float = 0.5
     """Resample when the effective sample size falls below this fraction of particles."""
     shrink: float = 0.9
@@ -88,7 +88,7 @@ class BayesConfig:
     candidates: int | None = None
     """Actions the information-seeking policy compares before each push; None: 8 for two
     links, 6 for longer chains, whose pushes cost more to simulate (it keeps a 3-link
-    episode within 10 s on two cores; docs/results.md)."""
+    episode within 10 s on two cores; docs/notebook)."""
     lookahead_particles: int = 32
     """Particles simulated per candidate action."""
     max_push: float = 1.0
@@ -103,7 +103,7 @@ class BayesConfig:
     [Gruenwald 2012; Bissiri, Holmes & Walker 2016] and keeps more particles alive. None:
     1 for two links, 0.6 for longer chains; where an arm pushes `ARM_LIKELIHOOD_POWER`
     (through `default_config`). Each was chosen on the tuning episodes (seed 1) for 90 %
-    intervals (docs/results.md)."""
+    intervals (docs/notebook)."""
     settle_cap: float = 1.0
     """Simulated seconds a particle's chain may settle after a push before its pose is
     taken as the rest pose. The world waits for rest (up to 10 s), but after 1 s of
@@ -562,7 +562,7 @@ def _reflect(x: np.ndarray, lows: np.ndarray, highs: np.ndarray) -> np.ndarray:
 ARM_CONFIG = BayesConfig(particles=128, lookahead_particles=16, candidates=4)
 """Where an arm pushes and the filter simulates it: an arm push costs ~11-17 ms of one core
 against ~0.3 ms on the batch path, so fewer particles, lookahead particles and candidates
-keep an episode within 10 s on two cores (docs/results.md) [ours]."""
+keep an episode within 10 s on two cores (docs/notebook) [ours]."""
 
 ARM_LIKELIHOOD_POWER = (0.8, 0.35)
 """The likelihood power where the filter simulates an arm: two links, three or more. The
@@ -571,7 +571,7 @@ episodes (seed 1, 40 each) 1 covered 82 % with two links and 0.6 covered 81 % wi
 0.6 and 0.35 covered 92 % and 88 %. With two links 0.6 drew heavy-link estimates towards
 the middle; 0.8 estimated better on the first 100 episodes of seed 1 (8.14 against 8.85,
 coverage 91 % both) and of 300 of seed 0 (10.01 against 11.13, coverage 85 % against
-87 %) (docs/results.md, "300 paired episodes in the 2-link cells") [ours]."""
+87 %) (docs/notebook, "300 paired episodes in the 2-link cells") [ours]."""
 
 ARM_MAX_PUSH = 0.15
 """With `arm_model="surrogate"`, the information-seeking policy keeps to |a1| <= 0.15
@@ -583,7 +583,7 @@ apart in yaw (docs/bayes.md)."""
 SURROGATE_LIKELIHOOD_POWER = 0.35
 """With `arm_model="surrogate"`, the surrogate is the filter's model of a push it does not
 simulate: the likelihood counts for less. 0.35 gave 90 % coverage on the tuning episodes
-of 2link-0.1-1 (seed 1; 77 % with 1; the error unchanged, docs/results.md)."""
+of 2link-0.1-1 (seed 1; 77 % with 1; the error unchanged, docs/notebook)."""
 
 SURROGATE_CONFIG = BayesConfig(
     arm_model="surrogate", max_push=ARM_MAX_PUSH, likelihood_power=SURROGATE_LIKELIHOOD_POWER

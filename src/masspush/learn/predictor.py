@@ -7,7 +7,7 @@ Architecture (shared/notes/paper-details.md):
 Inputs are normalised with the training set's mean and standard deviation (stored in the
 model). Training: the paper's plain SGD (batch 16, lr 0.1 halved three times over four
 equal phases) by default, or Adam with larger batches (the faster option, measured in
-docs/results.md).
+docs/notebook).
 """
 
 from __future__ import annotations
@@ -158,7 +158,7 @@ class TrainConfig:
 
 
 FAST = TrainConfig(optimizer="adam", steps=20_000, batch_size=256, lr=3e-3)
-"""The faster option: Adam, 256 episodes a step, 20k steps (see docs/results.md)."""
+"""The faster option: Adam, 256 episodes a step, 20k steps (see docs/notebook)."""
 
 
 @dataclass(frozen=True)

@@ -32,7 +32,7 @@ from masspush.learn.predictor import FAST, TrainConfig, load_model, train_predic
 from masspush.settings import Setting
 
 PREDICTOR = replace(FAST, features="relative")
-"""Training of predictor-0: our shipped RP recipe (docs/results.md)."""
+"""Training of predictor-0: our shipped RP recipe (docs/notebook)."""
 FINETUNE = replace(FAST, features="relative", steps=5_000, lr=1e-3)
 """Each fine-tuning of the predictor on a policy's rollouts [ours]."""
 

@@ -9,7 +9,7 @@ episodes of three classes, 4-fold cross-validated accuracy was 94 % from the est
 44 % from the 64 LSTM outputs, where a few dozen episodes let the classifier fit the chain's
 pose instead of its masses (`features="lstm"` keeps the paper's choice). Episodes made of
 several runs of a policy (`segment`) give the classifier a sample per run (`runs="each"`),
-and there the LSTM outputs of the learned policy's runs sorted best (docs/results.md,
+and there the LSTM outputs of the learned policy's runs sorted best (docs/notebook,
 "Reading each run on its own"). `cross_validate` reports stratified k-fold accuracy; where
 the true masses are known, `finetune_predictor` fine-tunes the predictor itself.
 """

@@ -74,7 +74,7 @@ class RandomiseConfig:
     model's predictor frozen, before the episodes are collected with the new policy; 0 keeps
     the policy as it is."""
     policy_envs: int = 8
-    """Parallel environments for that PPO training (the arm's recipe in docs/results.md)."""
+    """Parallel environments for that PPO training (the arm's recipe in docs/notebook)."""
     policy_rollout: int | None = None
     """Pushes per environment between two PPO updates; None keeps the paper's buffer."""
     ranges: WorldRanges = field(default_factory=WorldRanges)
