@@ -5,7 +5,7 @@ mass distributions: a trained predictor with its pushing policy
 (`masspush.learn.estimator.PredictorEstimator`), the particle filter
 (`masspush.bayes.estimator.BayesEstimator`), or your own. `evaluate` gives it the episodes,
 scores what it returns and hands back one typed `EvalResult`, the same for all of them.
-`masspush.estimators.load_estimator` makes one from a name or a model file.
+`masspush.models.load_estimator` makes one from a name or a model file.
 
 Episodes are drawn from the EVAL seed stream (`masspush.data.rollout`), which never meets
 the TRAIN stream that datasets are collected from, so evaluation never reuses a training seed.
