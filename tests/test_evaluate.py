@@ -11,6 +11,7 @@ from masspush.settings import get_setting
 KEYS = {"percentage_error", "relative_error", "mae", "constant_floor", "episodes", "failures"}
 
 
+@pytest.mark.slow
 def test_evaluate_json_has_the_documented_keys(model_file):
     out = subprocess.run(
         [
@@ -53,6 +54,7 @@ def test_evaluation_is_deterministic_and_seeded(model_file):
     assert a == b and a["mae"] != c["mae"]
 
 
+@pytest.mark.slow
 def test_per_episode_records_pair_a_learned_model_with_the_filter(model_file):
     from masspush.bayes.estimator import BayesEstimator
     from masspush.bayes.filter import BayesConfig

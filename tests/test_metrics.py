@@ -62,6 +62,7 @@ def test_paired_errors_use_only_the_episodes_both_scored():
         paired_percentage_errors(a, {"index": [7], "truth": [[0.5, 0.5]], "estimate": [[0.5, 0.5]]})
 
 
+@pytest.mark.slow
 def test_the_paired_difference_interval_separates_only_what_differs():
     from masspush.metrics import paired_difference_interval
 

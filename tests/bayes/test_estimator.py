@@ -14,6 +14,7 @@ def evaluate_bayes(setting, model, episodes, config, overrides=None):
     return evaluate(setting, estimator, episodes).to_dict()
 
 
+@pytest.mark.slow
 def test_evaluate_scores_the_filter_with_coverage_and_time(monkeypatch):
     result = evaluate_bayes(SETTING, "bayes-random", episodes=3, config=SMALL)
     assert result["episodes"] + result["failures"] == 3

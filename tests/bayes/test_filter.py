@@ -43,6 +43,7 @@ class FixedPushes:
         return np.array(self.actions.pop(0))
 
 
+@pytest.mark.slow
 def test_without_noise_the_posterior_concentrates_on_the_truth():
     cfg = EnvConfig(physics=SETTING.physics(), pusher="stiff", pushes=3, obs_noise=0.0,
                     action_noise=0.0)  # fmt: skip
@@ -99,6 +100,7 @@ def test_chi2_quantile_approximation():
     assert chi2_quantile(0.95, 5) == pytest.approx(11.070, rel=0.02)
 
 
+@pytest.mark.slow
 def test_the_information_seeking_policy_prefers_an_informative_push():
     # A push that misses the chain teaches nothing; a push of a link teaches something.
     filt = ParticleFilter(env_config(), BayesConfig(particles=48, lookahead_particles=16),
@@ -140,6 +142,7 @@ def test_where_an_arm_pushes_the_filter_simulates_the_arm_or_its_surrogate():
         BayesConfig(arm_model="puppet")
 
 
+@pytest.mark.slow
 def test_the_arm_filter_weighs_the_true_chain_highest():
     from masspush.bayes.arm_scenes import ArmScene
 
@@ -298,6 +301,7 @@ def pushes_log_lik(filt: ParticleFilter) -> np.ndarray:
     return total
 
 
+@pytest.mark.slow
 def test_resample_move_keeps_each_particle_s_likelihood_of_the_pushes_made():
     filt = ParticleFilter(env_config(), replace(SMALL, move_sweeps=2), seed=0)
     filt.reset(np.array([0.12, 0.12]))
@@ -312,6 +316,7 @@ def test_resample_move_keeps_each_particle_s_likelihood_of_the_pushes_made():
     np.testing.assert_allclose(filt.past_log_lik, pushes_log_lik(filt), atol=1e-6)
 
 
+@pytest.mark.slow
 def test_resample_move_stays_in_the_prior_where_the_pushes_made_are_likely():
     likely = {}
     for sweeps in (0, 3):

@@ -14,6 +14,7 @@ def run_cli(*args: str) -> subprocess.CompletedProcess:
     )
 
 
+@pytest.mark.slow
 def test_demo_prints_each_push_and_the_estimate_and_draws_them(tmp_path):
     picture = tmp_path / "demo.png"
     result = run_cli("demo", "--model", "rp+", "--seed", "4", "--out", str(picture))
@@ -41,6 +42,7 @@ def test_bench_sim_reports_all_paths():
     assert 0 <= report["failure_rate"] < 0.2
 
 
+@pytest.mark.slow
 def test_demo_is_reproducible_from_its_seed(tmp_path):
     def demo(seed: str) -> str:
         return run_cli("demo", "--model", "rp+", "--seed", seed, "--out", str(tmp_path / "d.png"))
@@ -50,6 +52,7 @@ def test_demo_is_reproducible_from_its_seed(tmp_path):
     assert demo("6").stdout != first.stdout
 
 
+@pytest.mark.slow
 def test_reproduce_table_only_writes_the_table_beside_the_papers(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     assert main(["reproduce", "--settings", "2link-0.1-1,3link-1-10", "--table-only"]) == 0
@@ -73,6 +76,7 @@ def test_bayes_options_become_typed_filter_fields():
     assert bayes_overrides(["arm_model=surrogate"]) == {"arm_model": "surrogate"}
 
 
+@pytest.mark.slow
 def test_randomise_collects_fine_tunes_and_names_the_result(tmp_path, capsys):
     out = tmp_path / "dr"
     args = ["randomise", "--setting", "2link-1-10", "--episodes", "3", "--steps", "2"]
@@ -100,6 +104,7 @@ def test_randomise_passes_the_policy_training_on(tmp_path, monkeypatch, capsys):
     assert seen["out"] == "runs/randomise-2link-1-10-target"
 
 
+@pytest.mark.slow
 def test_run_on_one_lab_of_the_target_world_records_it(tmp_path, capsys):
     out = tmp_path / "lab.jsonl"
     args = ["run", "--robot", "target", "--setting", "2link-1-10", "--model", "tp+",

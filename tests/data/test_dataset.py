@@ -29,6 +29,7 @@ def test_collect_and_load(tmp_path):
     assert load_dataset(tmp_path / "d", limit=12)[1].index.tolist() == list(range(12))
 
 
+@pytest.mark.slow
 def test_a_killed_collection_resumes_without_losing_or_duplicating(tmp_path):
     reference = tmp_path / "ref"
     small(reference, episodes=60)

@@ -47,6 +47,7 @@ def test_history_features_hide_the_future():
     assert not np.array_equal(before, after)
 
 
+@pytest.mark.slow
 def test_environment_rewards_the_frozen_predictors_estimate(predictor_file):
     env = PushPolicyEnv(CONFIG, str(predictor_file))
     check_env(env, skip_render_check=True)
@@ -63,6 +64,7 @@ def test_environment_rewards_the_frozen_predictors_estimate(predictor_file):
     assert len(rewards) <= 2
 
 
+@pytest.mark.slow
 def test_a_trained_policy_pushes_the_same_way_for_the_same_seeds(predictor_file, tmp_path):
     config = PolicyConfig(algo="mlp", n_envs=2, steps=64, n_steps=16)
     path = train_policy(
@@ -104,6 +106,7 @@ def test_bad_policy_configs_are_refused():
         PolicyConfig(learning_rate=0.0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("algo", ["mlp", "recurrent"])
 def test_an_untrained_policy_starts_at_the_initial_action(algo, predictor_file, tmp_path):
     """The zero action is a saddle (docs/training.md): the policy must start elsewhere."""
@@ -114,6 +117,7 @@ def test_an_untrained_policy_starts_at_the_initial_action(algo, predictor_file, 
     np.testing.assert_allclose(actions[:, 0], np.tile([0.6, -0.4], (4, 1)), atol=0.05)
 
 
+@pytest.mark.slow
 def test_the_policy_environment_pushes_in_another_world(predictor_file):
     from functools import partial
 

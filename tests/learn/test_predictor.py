@@ -40,6 +40,7 @@ def test_architecture_is_the_papers():
     torch.testing.assert_close(out.sum(-1), torch.ones(5, 3))
 
 
+@pytest.mark.slow
 def test_predictor_overfits_a_tiny_dataset(episodes, tmp_path):
     tiny = episodes.select(np.arange(len(episodes)) < 24)
     config = TrainConfig(
@@ -69,6 +70,7 @@ def test_short_training_beats_the_constant_floor_on_held_out_episodes(episodes, 
     assert result["percentage_error"] < 0.85 * result["constant_floor"], result
 
 
+@pytest.mark.slow
 def test_training_resumes_exactly_where_it_stopped(episodes, tmp_path):
     small = episodes.select(np.arange(len(episodes)) < 200)
     full = TrainConfig(
@@ -108,6 +110,7 @@ def _run_until(episodes, run_dir, config, stop_step):
         predictor.os.replace = real_replace
 
 
+@pytest.mark.slow
 def test_model_files_round_trip_and_refuse_other_settings(episodes, tmp_path):
     q0, steps = step_inputs(episodes.select(episodes.ok), "relative")
     model = MassPredictor(2, q0.shape[1], steps.shape[2], "relative")

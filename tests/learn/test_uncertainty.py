@@ -34,6 +34,7 @@ def fitted():
     return predictor, head, test.select(test.ok)
 
 
+@pytest.mark.slow
 def test_fitted_intervals_cover_near_their_nominal_share_on_fresh_episodes(fitted):
     predictor, head, test = fitted
     share = coverage(predictor, head, test, 0.9)
@@ -49,6 +50,7 @@ def test_beta_quantiles_of_a_flat_dirichlet():
     np.testing.assert_allclose(high, [[0.95, 0.95]], atol=0.01)
 
 
+@pytest.mark.slow
 def test_a_head_round_trips_and_refuses_another_setting(fitted, tmp_path):
     predictor, head, test = fitted
     path = save_head(tmp_path / "m.dirichlet.pt", head, {"setting": SETTING.name})
@@ -58,6 +60,7 @@ def test_a_head_round_trips_and_refuses_another_setting(fitted, tmp_path):
         load_head(path, "2link-0.1-1")
 
 
+@pytest.mark.slow
 def test_evaluate_reports_coverage_when_the_model_has_a_head(fitted, tmp_path, monkeypatch):
     _, head, _ = fitted
     models = tmp_path / "models"
@@ -75,6 +78,7 @@ def test_evaluate_reports_coverage_when_the_model_has_a_head(fitted, tmp_path, m
     )
 
 
+@pytest.mark.slow
 def test_the_learned_density_peaks_at_the_models_estimate(fitted):
     predictor, head, test = fitted
     learned = LearnedPosterior(predictor, head)

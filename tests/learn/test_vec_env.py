@@ -18,6 +18,7 @@ def play(vec, rng):
     return obs, rewards, dones, infos
 
 
+@pytest.mark.slow
 def test_lockstep_episodes_reward_the_predictors_estimates(predictor_file):
     vec = BatchPushVecEnv(CONFIG, str(predictor_file), n_envs=8, seed=0)
     obs, rewards, dones, infos = play(vec, np.random.default_rng(0))
@@ -35,6 +36,7 @@ def test_lockstep_episodes_reward_the_predictors_estimates(predictor_file):
     np.testing.assert_array_equal(obs[2][:, -2:], np.tile([1.0, 0.0], (8, 1)))
 
 
+@pytest.mark.slow
 def test_the_same_seed_gives_the_same_episodes(predictor_file):
     runs = []
     for _ in range(2):
@@ -45,6 +47,7 @@ def test_the_same_seed_gives_the_same_episodes(predictor_file):
         np.testing.assert_array_equal(a, b)
 
 
+@pytest.mark.slow
 def test_arms_are_refused(predictor_file):
     with pytest.raises(ValueError, match="stiff pusher only"):
         BatchPushVecEnv(EnvConfig(physics=CONFIG.physics, pusher="kuka"), str(predictor_file), 2)

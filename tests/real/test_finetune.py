@@ -41,6 +41,7 @@ def labelled_recording(tmp_path_factory):
     return write_recording(path, Recording(2, robot="sim", setting=SETTING, episodes=episodes))
 
 
+@pytest.mark.slow
 def test_a_classifier_on_predictor_features_beats_chance(labelled_recording):
     recording = read_recording(labelled_recording)
     predictor = load_model(resolve_model("rp+", SETTING), SETTING)[0]
@@ -61,6 +62,7 @@ def test_a_classifier_on_predictor_features_beats_chance(labelled_recording):
     np.testing.assert_array_equal(again, scores["confusion"])
 
 
+@pytest.mark.slow
 def test_finetune_and_classify_commands(labelled_recording, tmp_path, capsys):
     out = tmp_path / "clf.pt"
     args = ["--setting", SETTING, "--model", "rp+", "--episodes", str(labelled_recording)]
@@ -107,6 +109,7 @@ def segmented_recording(path, segments: int = 3, episodes: int = 4):
     return predictor, runs
 
 
+@pytest.mark.slow
 def test_segment_features_average_what_each_run_estimated(tmp_path):
     predictor, runs = segmented_recording(tmp_path / "runs.jsonl")
     episodes = read_recording(tmp_path / "runs.jsonl").to_episodes()
@@ -121,6 +124,7 @@ def test_segment_features_average_what_each_run_estimated(tmp_path):
     assert lstm.shape == (4, 64)
 
 
+@pytest.mark.slow
 def test_an_episode_cut_after_its_first_runs_averages_only_those(tmp_path):
     predictor, runs = segmented_recording(tmp_path / "runs.jsonl")
     episodes = read_recording(tmp_path / "runs.jsonl").to_episodes()
@@ -134,6 +138,7 @@ def test_an_episode_cut_after_its_first_runs_averages_only_those(tmp_path):
         first_pushes(episodes, 0)
 
 
+@pytest.mark.slow
 def test_an_unfinished_run_counts_with_the_pushes_it_saw(tmp_path):
     predictor, _ = segmented_recording(tmp_path / "runs.jsonl", episodes=2)
     recording = read_recording(tmp_path / "runs.jsonl")
@@ -153,6 +158,7 @@ def test_an_unfinished_run_counts_with_the_pushes_it_saw(tmp_path):
         ClassifierConfig(segment=-1)
 
 
+@pytest.mark.slow
 def test_finetune_and_classify_read_runs_as_recorded(tmp_path, capsys):
     segmented_recording(tmp_path / "runs.jsonl", episodes=6)
     out = tmp_path / "clf.pt"
@@ -167,6 +173,7 @@ def test_finetune_and_classify_read_runs_as_recorded(tmp_path, capsys):
         assert "accuracy on the 6 labelled" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_runs_read_one_by_one_are_classified_by_their_summed_log_probabilities(tmp_path):
     import torch
 
@@ -194,6 +201,7 @@ def test_runs_read_one_by_one_are_classified_by_their_summed_log_probabilities(t
         ClassifierConfig(runs="median")
 
 
+@pytest.mark.slow
 def test_reading_runs_one_by_one_keeps_what_averaging_loses(monkeypatch):
     """Two classes whose episodes have the same mean: one's runs land at +1 or -1, half of
     each, the other's near 0. Averaged the classes overlap; read run by run they do not.

@@ -66,6 +66,7 @@ def test_episodes_are_what_the_robot_saw_and_follow_their_index():
     assert (eps.masses > 0).all() and eps.lengths.shape == (2, 2)
 
 
+@pytest.mark.slow
 def test_a_stopped_collection_resumes_to_the_same_episodes(tmp_path):
     first = collect_randomised(TINY, tmp_path, workers=1, progress=False)
     shard_path(tmp_path, 1).unlink()
@@ -97,6 +98,7 @@ def test_the_fine_tuned_predictor_keeps_its_policy_and_names_its_worlds(tmp_path
         )  # fmt: skip
 
 
+@pytest.mark.slow
 def test_the_tuned_predictor_pushes_with_its_policy_where_it_is_and_where_it_ships(
     tmp_path, monkeypatch
 ):
@@ -120,6 +122,7 @@ def test_the_tuned_predictor_pushes_with_its_policy_where_it_is_and_where_it_shi
     assert model_and_policy(path, SETTING)[1]["policy_file"] == "tp+.policy.zip"
 
 
+@pytest.mark.slow
 def test_episodes_can_come_from_the_target_world_itself_but_do_not_ship(tmp_path):
     config = replace(TINY, world="target")
     assert config.worlds == TargetWorld() and TINY.worlds == WorldRanges()
@@ -136,6 +139,7 @@ def test_episodes_can_come_from_the_target_world_itself_but_do_not_ship(tmp_path
         RandomiseConfig(world="real")
 
 
+@pytest.mark.slow
 def test_the_policy_can_be_trained_on_in_randomised_worlds(tmp_path):
     from masspush.models import model_and_policy
     from masspush.real.randomise import SHIPPED_POLICY_NAME

@@ -25,6 +25,7 @@ def run(tmp_path_factory):
     return out, run_sim2real(CONFIG, out, progress=False)
 
 
+@pytest.mark.slow
 def test_each_policy_records_the_paper_classes_with_their_masses(run):
     out, _ = run
     for arm in ("random", "learned"):
@@ -35,6 +36,7 @@ def test_each_policy_records_the_paper_classes_with_their_masses(run):
             np.testing.assert_allclose(episode["masses"], PAPER_CLASSES[episode["label"]])
 
 
+@pytest.mark.slow
 def test_both_policies_see_the_same_chains(run):
     # Paired comparison: the same seeds, so the same starting poses up to the noise.
     out, _ = run
@@ -43,6 +45,7 @@ def test_both_policies_see_the_same_chains(run):
         np.testing.assert_allclose(a["observations"][0], b["observations"][0], atol=1e-6)
 
 
+@pytest.mark.slow
 def test_the_summary_scores_both_feature_kinds_beside_the_paper(run):
     out, _ = run
     saved = json.loads((out / "summary.json").read_text())
@@ -55,6 +58,7 @@ def test_the_summary_scores_both_feature_kinds_beside_the_paper(run):
     assert "| learned | tp+ |" in table and "81.4 %" in table
 
 
+@pytest.mark.slow
 def test_a_rerun_reuses_the_recordings(run):
     out, results = run
     before = (out / "learned.jsonl").read_bytes()
@@ -69,6 +73,7 @@ def test_too_few_episodes_for_the_folds_are_refused():
         Sim2RealConfig(episodes_per_class=3)
 
 
+@pytest.mark.slow
 def test_the_control_runs_in_the_training_world(tmp_path):
     from dataclasses import replace
 
@@ -82,6 +87,7 @@ def test_the_control_runs_in_the_training_world(tmp_path):
         Sim2RealConfig(world="moon")
 
 
+@pytest.mark.slow
 def test_another_model_for_an_arm_records_anew_and_is_named(run, tmp_path):
     import shutil
     from dataclasses import replace
@@ -100,6 +106,7 @@ def test_another_model_for_an_arm_records_anew_and_is_named(run, tmp_path):
         replace(CONFIG, models={"learned": "tp+"})
 
 
+@pytest.mark.slow
 def test_the_target_worlds_differences_can_be_scaled(run, tmp_path):
     from dataclasses import replace
 
@@ -131,6 +138,7 @@ def test_the_target_worlds_differences_can_be_scaled(run, tmp_path):
         Sim2RealConfig(severity=-0.1)
 
 
+@pytest.mark.slow
 def test_one_lab_with_runs_of_the_policy(tmp_path):
     from dataclasses import replace
 
@@ -162,6 +170,7 @@ def test_one_lab_with_runs_of_the_policy(tmp_path):
         plot_accuracy_by_pushes({"a": results, "b": shorter}, tmp_path / "bad.png")
 
 
+@pytest.mark.slow
 def test_the_arms_are_compared_on_the_same_chains(run):
     out, results = run
     learned, random = results["arms"]["learned"], results["arms"]["random"]
@@ -189,6 +198,7 @@ def test_paired_test_is_the_exact_mcnemar_test():
     assert mixed["p_value"] == pytest.approx(10 / 16)
 
 
+@pytest.mark.slow
 def test_a_single_run_has_no_curve_over_runs(run):
     out, results = run
     assert "by_runs" not in results["arms"]["learned"]

@@ -1,5 +1,7 @@
 import json
 
+import pytest
+
 import masspush.models as models_module
 import masspush.reports.baselines as baselines
 from masspush.evaluate import EvaluateConfig
@@ -7,6 +9,7 @@ from masspush.learn.predictor import TrainConfig
 from masspush.models import evaluate_model
 
 
+@pytest.mark.slow
 def test_baselines_recipe_end_to_end_and_shipping(tmp_path, monkeypatch):
     tiny = TrainConfig(
         optimizer="adam", steps=200, batch_size=32, lr=3e-3, eval_every=100, features="relative"

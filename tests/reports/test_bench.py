@@ -1,3 +1,5 @@
+import pytest
+
 from masspush.reports.bench import (
     DataBench,
     PPOBench,
@@ -8,6 +10,7 @@ from masspush.reports.bench import (
 )
 
 
+@pytest.mark.slow
 def test_collection_and_training_benchmarks_report_rates():
     data = bench_data(DataBench("2link-0.1-1", "stiff", episodes=20))
     assert data["episodes_per_s"] > 0 and data["pushes_per_s"] == 2 * data["episodes_per_s"]
@@ -16,6 +19,7 @@ def test_collection_and_training_benchmarks_report_rates():
     assert all(r["samples_per_s"] > 0 for r in rows)
 
 
+@pytest.mark.slow
 def test_ppo_benchmark_reports_a_rate_per_learner():
     rows = bench_ppo(PPOBench("2link-0.1-1", "stiff", ("mlp",), steps=16, envs=(4,), n_steps=8))
     assert len(rows) == 1 and rows[0]["pushes_per_s"] > 0

@@ -6,6 +6,7 @@ from masspush.cli import main
 from masspush.reports.render import render_episode
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("pusher", "suffix"), [("stiff", ".gif"), ("kuka", ".mp4")])
 def test_renders_non_blank_frames_of_the_requested_size(tmp_path, pusher, suffix):
     out = tmp_path / f"episode{suffix}"

@@ -7,6 +7,7 @@ from masspush.sim.chain import sample_chain
 from masspush.sim.simulate import ChainSim
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("n_links", [2, 3])
 def test_batch_gives_the_same_rest_poses_as_one_at_a_time(n_links):
     physics = PhysicsConfig(n_links=n_links, mass_range=(0.1, 10.0))

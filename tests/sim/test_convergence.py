@@ -1,6 +1,9 @@
+import pytest
+
 from masspush.sim.convergence import format_table, validate_physics
 
 
+@pytest.mark.slow
 def test_validation_reports_every_comparison_and_slow_pushes_are_not_chaotic():
     rows = validate_physics(n_links=2, pushes=8, timesteps=(0.002, 0.001), seed=3, progress=False)
     labels = {r.label for r in rows}
