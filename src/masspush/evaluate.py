@@ -47,7 +47,8 @@ class EvaluateConfig:
     workers: int | None = None
     """Processes for an arm (default: one per core)."""
     per_episode: bool = False
-    """Record each scored episode's estimate and truth (for a later --paired-with)."""
+    """Record each scored episode's estimate and truth, for a later --paired-with (the particle
+    filter always does)."""
     paired_with: str | None = None
     """An earlier `evaluate --json --per-episode` of another model on the same setting, seed
     and episodes: also score both on the episodes both scored, with a 95 % bootstrap
@@ -100,6 +101,9 @@ class Estimator(Protocol):
     """The pusher that delivers its pushes (a name in `masspush.sim.pushers.PUSHERS`)."""
     model_file: str | None
     """The file it was loaded from, where there is one."""
+
+    # Optional: `always_per_episode = True` makes every result keep each episode's estimate
+    # (for an estimator whose runs are too costly to repeat for a later pairing).
 
     def run(
         self, env_config: EnvConfig, indices: np.ndarray, seed: int, workers: int | None
@@ -177,6 +181,7 @@ def evaluate(
     estimators can be compared on the same episodes."""
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
+    per_episode = per_episode or getattr(estimator, "always_per_episode", False)
     env_config = setting.env_config(estimator.pusher)
     run = estimator.run(env_config, np.arange(episodes), seed, workers)
     if len(run.truth) == 0:

@@ -18,6 +18,7 @@ from masspush.bayes.filter import (
     ParticleFilter,
     UnexplainedObservationWarning,
     _reflect,
+    bayes_overrides,
     chi2_quantile,
     config_difference,
     filter_for,
@@ -333,3 +334,15 @@ def test_resample_move_stays_in_the_prior_where_the_pushes_made_are_likely():
         likely[sweeps] = np.median(pushes_log_lik(filt))
     # The jitter moves particles without asking the push; the walk's moves must answer it.
     assert likely[3] > likely[0], likely
+
+
+def test_bayes_overrides_become_typed_filter_fields():
+    assert bayes_overrides(None) is None
+    got = bayes_overrides(["particles=512", "likelihood_power=0.6", "tail_dof=none"])
+    assert got == {"particles": 512, "likelihood_power": 0.6, "tail_dof": None}
+    assert isinstance(got["particles"], int)
+    with pytest.raises(ValueError, match="KEY one of"):
+        bayes_overrides(["particle=5"])
+    with pytest.raises(ValueError, match="a number"):
+        bayes_overrides(["particles=many"])
+    assert bayes_overrides(["arm_model=surrogate"]) == {"arm_model": "surrogate"}

@@ -4,7 +4,6 @@ import sys
 
 import pytest
 
-from masspush.bayes.filter import bayes_overrides
 from masspush.cli import main
 
 
@@ -62,18 +61,6 @@ def test_reproduce_table_only_writes_the_table_beside_the_papers(tmp_path, monke
     assert (tmp_path / "results" / "meta-iterations.png").stat().st_size > 0
     assert main(["train", "--setting", "4link"]) == 2
     assert "unknown setting" in capsys.readouterr().err
-
-
-def test_bayes_options_become_typed_filter_fields():
-    assert bayes_overrides(None) is None
-    got = bayes_overrides(["particles=512", "likelihood_power=0.6", "tail_dof=none"])
-    assert got == {"particles": 512, "likelihood_power": 0.6, "tail_dof": None}
-    assert isinstance(got["particles"], int)
-    with pytest.raises(ValueError, match="KEY one of"):
-        bayes_overrides(["particle=5"])
-    with pytest.raises(ValueError, match="a number"):
-        bayes_overrides(["particles=many"])
-    assert bayes_overrides(["arm_model=surrogate"]) == {"arm_model": "surrogate"}
 
 
 @pytest.mark.slow

@@ -70,7 +70,10 @@ class BayesEstimator:
     configured by `config` (`default_config`'s by default) changed by `overrides`.
 
     Besides the metrics it reports interval coverage, seconds per episode and the
-    observations no particle explained."""
+    observations no particle explained; and always each episode's estimate, since a run of
+    the filter is too costly to repeat for a later pairing."""
+
+    always_per_episode = True
 
     def __init__(
         self, setting: Setting, model: str = "bayes", pusher: str | None = None,

@@ -72,6 +72,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         args = parser.parse_args(argv)
         return args.func(args)
+    except BrokenPipeError:  # the reader stopped listening (`| head`): nothing to say
+        sys.stderr.close()
+        return 0
     except (ValueError, OSError) as err:  # bad input: a message, not a traceback
         message = str(err)
         if isinstance(err, OSError) and err.filename is not None:
