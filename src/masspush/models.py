@@ -30,10 +30,15 @@ SHIPPED_DIR = Path(__file__).parent / "models"
 SHIPPED_NAMES = ("rp", "rp+", "tp", "tp+", "tp+dr")
 
 
+def shipped_file(setting: str, name: str) -> Path:
+    """Where the shipped model `name` of `setting` lies (or would lie)."""
+    return SHIPPED_DIR / setting / f"{name}.pt"
+
+
 def resolve_model(model: str | os.PathLike, setting: str) -> Path:
     """A shipped model's file for `setting` (by name: rp, rp+, tp, tp+, tp+dr), or a path."""
     if str(model) in SHIPPED_NAMES:
-        path = SHIPPED_DIR / setting / f"{model}.pt"
+        path = shipped_file(setting, str(model))
         if not path.exists():
             have = sorted(p.stem for p in (SHIPPED_DIR / setting).glob("*.pt"))
             raise ValueError(
@@ -103,7 +108,7 @@ def ship(setting: str, sources: Mapping[str, str | os.PathLike]) -> list[Path]:
     for name, source in sources.items():
         if not Path(source).exists():
             raise ValueError(f"{source} does not exist: train the {name!r} model first")
-        written += ship_model(source, SHIPPED_DIR / setting / f"{name}.pt")
+        written += ship_model(source, shipped_file(setting, name))
     return written
 
 

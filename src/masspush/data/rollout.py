@@ -22,8 +22,8 @@ from typing import Protocol
 
 import numpy as np
 
-from masspush.sim.chain import sample_chain
 from masspush.config import EnvConfig
+from masspush.sim.chain import sample_chain
 from masspush.sim.pushers import pusher_kind
 from masspush.sim.simulate import FAILURES
 
@@ -177,8 +177,8 @@ def run_batch(
     nthread: int = 0,
 ) -> Episodes:
     """Episodes on the batch path (pushers with one), drawing noise exactly as ChainEnv."""
-    from masspush.sim.batch import ChainBatch
     from masspush.env import executed_action, noisy_observation
+    from masspush.sim.batch import ChainBatch
 
     physics = env_config.physics
     k, n = env_config.pushes, physics.n_links

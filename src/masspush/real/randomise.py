@@ -300,10 +300,10 @@ def randomise(
     predictor."""
     from masspush.learn.predictor import load_model, train_predictor
     from masspush.learn.recipe import FINETUNE
-    from masspush.models import SHIPPED_DIR, resolve_model, ship_model
+    from masspush.models import resolve_model, ship_model, shipped_file
 
     model_file = resolve_model(config.model, config.setting)
-    shipped = SHIPPED_DIR / config.setting / f"{config.shipped_name}.pt"
+    shipped = shipped_file(config.setting, config.shipped_name)
     # A tuned predictor ships beside the policy it reads; with policy_steps that policy is
     # shipped with it, so any learned model may be its start (e.g. a tp+drp, to go on).
     if (

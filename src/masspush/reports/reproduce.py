@@ -20,7 +20,7 @@ from typing import Any
 
 from masspush.learn.predictor import FAST
 from masspush.learn.recipe import Recipe, RecipeConfig
-from masspush.models import SHIPPED_DIR, ship
+from masspush.models import ship, shipped_file
 from masspush.reports.baselines import PAPER_TABLE, baseline_paths, run_baselines, ship_baselines
 from masspush.settings import get_setting
 
@@ -62,7 +62,7 @@ def train_setting(job: TrainJob, recipe: RecipeConfig, log=print) -> list[str]:
 
 def ship_recipe(run: Recipe) -> list[Path]:
     """Ship a finished recipe's TP and TP+ (and its predictor-0 as RP where none is shipped)."""
-    has_rp = (SHIPPED_DIR / run.setting.name / "rp.pt").exists()
+    has_rp = shipped_file(run.setting.name, "rp").exists()
     return ship(run.setting.name, run.exports(shipped_rp=has_rp))
 
 
