@@ -8,6 +8,7 @@ data, train, real robot, report). Bad input ends in one line on stderr and exit 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
 
@@ -17,6 +18,13 @@ from masspush.cli.command import Command
 COMMANDS: list[Command] = [
     *estimate.COMMANDS, *data.COMMANDS, *train.COMMANDS, *real.COMMANDS, *reports.COMMANDS
 ]  # fmt: skip
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with a one-line usage error: `masspush COMMAND: error: ...`, exit 2."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
 def _grouped_listing() -> str:
@@ -43,11 +51,14 @@ def _chosen(argv: Sequence[str]) -> str | None:
 def build_parser(only: str | None = None, everything: bool = True) -> argparse.ArgumentParser:
     """The parser; the options of the command `only` (of every command with `everything`
     and no `only`) built from their config dataclasses."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="masspush",
         description="Estimate the mass distribution of articulated objects by pushing them.",
         epilog=_grouped_listing(),
         formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument(
+        "--debug", action="store_true", help="show the traceback behind an error message"
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     bench = sub.add_parser("bench", description="benchmarks")
@@ -65,24 +76,50 @@ def build_parser(only: str | None = None, everything: bool = True) -> argparse.A
     return parser
 
 
+DEBUG_ENV = "MASSPUSH_DEBUG"
+"""Set (to anything but 0) to see the traceback behind an error message, as `--debug` does."""
+
+
+def _one_line(err: BaseException) -> str:
+    """The error as one line naming the file or argument: a recording's first problem of
+    several, an operating-system error's file and reason."""
+    from masspush.data.recording import RecordingError
+
+    if isinstance(err, RecordingError):
+        first = err.problems[0] if err.problems else ""
+        more = (
+            f"; {len(err.problems) - 1} more: masspush check-episodes"
+            if len(err.problems) > 1
+            else ""
+        )
+        return f"{str(err).splitlines()[0]}; the first: {first}{more}"
+    if isinstance(err, OSError) and err.filename is not None:
+        return f"{err.filename}: {err.strerror}"
+    return " ".join(str(err).split()) or type(err).__name__
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run one command. Bad input (exit 2) and a failing file system (exit 1) end in one line
+    on stderr, `masspush COMMAND: error: ...`; `--debug` (or MASSPUSH_DEBUG=1) shows the
+    traceback instead."""
     argv = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in argv[:1] or os.environ.get(DEBUG_ENV, "0") not in ("", "0")
+    argv = argv[1:] if argv[:1] == ["--debug"] else argv
     chosen = _chosen(argv)
     parser = build_parser(only=chosen, everything=False)
+    args = parser.parse_args(argv)  # a usage error: argparse's message, exit 2
     try:
-        args = parser.parse_args(argv)
         return args.func(args)
     except BrokenPipeError:  # the reader stopped listening (`| head`): nothing to say
         sys.stderr.close()
         return 0
-    except (ValueError, OSError) as err:  # bad input: a message, not a traceback
-        message = str(err)
-        if isinstance(err, OSError) and err.filename is not None:
-            message = f"{err.filename}: {err.strerror}"
-        print(f"masspush: error: {message}", file=sys.stderr)
-        return 2
+    except (ValueError, OSError) as err:
+        if debug:
+            raise
+        print(f"masspush {chosen}: error: {_one_line(err)}", file=sys.stderr)
+        return 1 if isinstance(err, OSError) else 2
     except KeyboardInterrupt:
-        print("masspush: interrupted (long runs resume when run again)", file=sys.stderr)
+        print(f"masspush {chosen}: interrupted (long runs resume when run again)", file=sys.stderr)
         return 130
 
 

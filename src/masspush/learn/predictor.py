@@ -224,16 +224,24 @@ def save_model(path: str | os.PathLike, model: MassPredictor, meta: dict[str, An
     os.replace(tmp, path)
 
 
+def read_torch_file(path: str | os.PathLike, what: str) -> Any:
+    """A masspush file saved with torch (tensors and plain data only), or a ValueError that
+    names the file: missing, a directory, or not such a file at all (garbage, truncated)."""
+    if Path(path).is_dir():
+        raise ValueError(f"{path} is a directory, not a {what} file")
+    try:
+        return torch.load(path, map_location="cpu", weights_only=True)
+    except FileNotFoundError:
+        raise ValueError(f"no {what} file at {path}") from None
+    except Exception as err:  # torch raises many kinds for a file that is not its own
+        raise ValueError(f"{path} is not a readable {what} file ({type(err).__name__})") from None
+
+
 def load_model(
     path: str | os.PathLike, setting: str | None = None, pusher: str | None = None
 ) -> tuple[MassPredictor, dict[str, Any]]:
     """Load a predictor; refuse it for another setting or pusher than it was trained for."""
-    try:
-        payload = torch.load(path, map_location="cpu", weights_only=True)
-    except FileNotFoundError:
-        raise ValueError(f"no model file at {path}") from None
-    except Exception as err:
-        raise ValueError(f"{path} is not a readable model file: {err}") from None
+    payload = read_torch_file(path, "model")
     if not isinstance(payload, dict) or payload.get("format") != MODEL_FORMAT:
         raise ValueError(f"{path} is not a masspush predictor")
     if payload.get("version") != MODEL_VERSION:

@@ -23,7 +23,7 @@ import torch
 from torch import nn
 
 from masspush.data.rollout import Episodes
-from masspush.learn.predictor import MassPredictor, step_inputs
+from masspush.learn.predictor import MassPredictor, read_torch_file, step_inputs
 from masspush.sim.pushers import IDEAL_PUSHER
 
 FORMAT, VERSION = "masspush-dirichlet-head", 1
@@ -192,7 +192,7 @@ def save_head(path: str | os.PathLike, head: PrecisionHead, meta: dict[str, Any]
 
 
 def load_head(path: str | os.PathLike, setting: str | None = None) -> PrecisionHead:
-    payload = torch.load(path, map_location="cpu", weights_only=True)
+    payload = read_torch_file(path, "Dirichlet head")
     if not isinstance(payload, dict) or payload.get("format") != FORMAT:
         raise ValueError(f"{path} is not a masspush Dirichlet head")
     if setting is not None and payload["meta"].get("setting") != setting:

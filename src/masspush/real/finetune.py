@@ -28,7 +28,7 @@ import torch
 from torch import nn
 
 from masspush.data.rollout import Episodes, empty_episodes
-from masspush.learn.predictor import MassPredictor, step_inputs
+from masspush.learn.predictor import MassPredictor, read_torch_file, step_inputs
 
 PAPER_CLASSES: dict[str, tuple[float, float]] = {
     "0.160-0.160": (0.16, 0.16),
@@ -326,10 +326,7 @@ def load_classifier(
     path: str | os.PathLike, setting: str | None = None
 ) -> tuple[MassClassifier, list[str], dict[str, Any]]:
     """A saved classifier, its class names and metadata; refused for another setting."""
-    try:
-        payload = torch.load(path, map_location="cpu", weights_only=True)
-    except FileNotFoundError:
-        raise ValueError(f"no classifier file at {path}") from None
+    payload = read_torch_file(path, "classifier")
     if not isinstance(payload, dict) or payload.get("format") != CLASSIFIER_FORMAT:
         raise ValueError(f"{path} is not a masspush classifier")
     meta = payload["meta"]
