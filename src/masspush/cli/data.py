@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 from masspush.cli.command import Command
 from masspush.cli.options import add_fields, build
@@ -36,7 +37,10 @@ def _check(args: argparse.Namespace) -> int:
     from masspush.data.recording import check_report
 
     good, lines = check_report(args.file)
-    print("\n".join(lines))
+    print("\n".join(lines))  # the report: every problem with its line and field
+    if not good:
+        print(f"masspush check-episodes: error: {args.file}: {len(lines)} problem(s), listed "
+              "above", file=sys.stderr)  # fmt: skip
     return 0 if good else 1
 
 

@@ -24,7 +24,7 @@ import time
 import zipfile
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from tqdm import tqdm
@@ -139,8 +139,15 @@ class CollectConfig:
     settings_file: str | None = None
     """TOML file with custom settings."""
 
+    MAX_EPISODES: ClassVar[int] = 100_000_000
+    """More is a typo, not a dataset: 10^8 two-link episodes already take ~60 GB."""
+
     def __post_init__(self) -> None:
         check_int("episodes", self.episodes)
+        if self.episodes > self.MAX_EPISODES:
+            raise ValueError(
+                f"episodes must be at most {self.MAX_EPISODES:,}, got {self.episodes:,}"
+            )
         check_int("shard_size", self.shard_size)
         check_int("seed", self.seed, 0)
         check_int("workers", self.workers, optional=True)

@@ -63,9 +63,13 @@ class SessionConfig:
         check_int("lab", self.lab, 0, optional=True)
         if self.lab is not None and self.robot != "target":
             raise ValueError(f"lab is one draw of the target world; robot {self.robot!r} has none")
+        if self.episodes_file is not None and self.robot != "replay":
+            raise ValueError(f"episodes_file is for the replay robot, not {self.robot!r}")
         if self.robot == "replay":
             if self.episodes_file is None:
                 raise ValueError("the replay backend needs --episodes-file (a recording)")
+            if not Path(self.episodes_file).is_file():
+                raise ValueError(f"episodes_file: no recording file at {self.episodes_file}")
             if self.masses is not None:
                 raise ValueError("masses pins a simulated chain's masses; a replay has its own")
             if self.segments != 1:

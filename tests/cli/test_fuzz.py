@@ -1,0 +1,132 @@
+"""Bad input to every command ends in one line on stderr and a non-zero exit, before any
+work: table-driven, one row per command and kind of bad input (issue 26). A command without
+rows fails the suite."""
+
+from __future__ import annotations
+
+import signal
+
+import pytest
+
+from masspush.cli import COMMANDS, main
+
+# Placeholders, filled per test: DIR (a directory), MISSING (no such file), GARBAGE (a file
+# of random bytes), RO (a file in a read-only directory).
+CASES: dict[str, list[list[str]]] = {
+    "demo": [["--seed", "-1"], ["--setting", "nope"], ["--out", "DIR"], ["--model", "MISSING"],
+             ["--video", "v.txt"], ["--model", "GARBAGE"]],
+    "evaluate": [["--episodes", "0"], ["--episodes", "1000000000000"], ["--seed", "-1"],
+                 ["--model", "nope"], ["--paired-with", "DIR"], ["--paired-with", "MISSING"],
+                 ["--paired-with", "GARBAGE"], ["--setting", "nope"], ["--workers", "0"],
+                 ["--model", "DIR"], ["--model", "GARBAGE"], ["--episodes", "nan"]],
+    "run": [["--count", "0"], ["--count", "-1"], ["--pushes", "0"], ["--seed", "-1"],
+            ["--robot", "nope"], ["--robot", "replay"], ["--episodes-file", "DIR"],
+            ["--masses", "nan,1"], ["--record", "DIR"], ["--lab", "1"], ["--setting", "nope"]],
+    "collect": [["--episodes", "0"], ["--episodes", "-1"], ["--shard-size", "0"],
+                ["--policy", "nope"], ["--setting", "nope"], ["--seed", "-1"],
+                ["--episodes", "1000000000000"], ["--out", "GARBAGE"]],
+    "check-episodes": [["DIR"], ["MISSING"], ["GARBAGE"]],
+    "train-predictor": [["--data", "MISSING"], ["--data", "DIR"], ["--batch-size", "0"],
+                        ["--steps", "-1"], ["--lr", "nan"], ["--episodes", "1"]],
+    "baselines": [["--setting", "nope"], ["--table", "--pusher", "nope"],
+                  ["--eval-episodes", "0"], ["--episodes", "1", "5"]],
+    "train": [["--setting", "nope"], ["--meta-iterations", "0"], ["--ppo-steps", "0"],
+              ["--envs", "0"], ["--algo", "nope"]],
+    "reproduce": [["--settings", "nope"], ["--meta-iterations", "0"], ["--eval-episodes", "0"]],
+    "calibrate": [["--setting", "nope"], ["--model", "MISSING"], ["--episodes", "0"],
+                  ["--out", "DIR"], ["--model", "GARBAGE"]],
+    "finetune": [["--episodes", "MISSING"], ["--episodes", "DIR"], ["--episodes", "GARBAGE"],
+                 ["--folds", "0"], ["--out", "DIR"]],
+    "classify": [["--classifier", "MISSING"], ["--classifier", "GARBAGE"], ["--episodes", "DIR"]],
+    "sim2real": [["--episodes-per-class", "0"], ["--severity", "2"], ["--world", "moon"],
+                 ["--segments", "0"], ["--setting", "nope"]],
+    "randomise": [["--episodes", "0"], ["--steps", "0"], ["--world", "moon"], ["--envs", "0"],
+                  ["--workers", "0"]],
+    "bayes-table": [["--settings", "nope"], ["--episodes", "0"], ["--models", "nope"]],
+    "render": [["--out", "x.txt"], ["--out", "DIR"], ["--width", "1"], ["--seed", "-1"],
+               ["--pusher", "nope"]],
+    "bench sim": [["--links", "1"], ["--chains", "0"], ["--mass-range", "1", "0"],
+                  ["--seed", "-1"]],
+    "bench pushers": [["--pushers", "nope"], ["--pushes", "0"], ["--links", "1"]],
+    "bench data": [["--episodes", "-1"], ["--pusher", "nope"], ["--workers", "0"]],
+    "bench train": [["--episodes", "0"], ["--steps", "0"]],
+    "bench ppo": [["--steps", "0"], ["--envs", "0"], ["--pusher", "nope"]],
+    "bench motion": [["--data", "MISSING"], ["--episodes", "0"]],
+    "bench physics": [["--links", "1"], ["--pushes", "0"], ["--mass-range", "nan", "1"]],
+}  # fmt: skip
+
+# What each command needs besides the bad value, so that only that value is wrong.
+REQUIRED: dict[str, list[str]] = {
+    "evaluate": ["--setting", "2link-1-10", "--model", "rp"],
+    "run": ["--robot", "stiff", "--setting", "2link-1-10"],
+    "collect": ["--setting", "2link-1-10", "--episodes", "5", "--out", "TMP/ds"],
+    "train-predictor": ["--setting", "2link-1-10", "--data", "MISSING"],
+    "baselines": ["--setting", "2link-1-10"],
+    "train": ["--setting", "2link-1-10", "--out", "TMP/run"],
+    "reproduce": ["--settings", "2link-1-10"],
+    "calibrate": ["--setting", "2link-1-10"],
+    "finetune": ["--setting", "2link-1-10", "--episodes", "MISSING"],
+    "classify": ["--classifier", "MISSING", "--episodes", "MISSING"],
+    "sim2real": ["--out", "TMP/s2r"],
+    "randomise": ["--out", "TMP/dr"],
+    "bench motion": ["--data", "MISSING"],
+}
+
+
+class StartedWork(BaseException):
+    """Raised by the alarm: not an Exception, so that no error handler can swallow it."""
+
+
+def test_every_command_has_cases():
+    assert set(CASES) == {c.name for c in COMMANDS}
+
+
+def _argv(name: str, case: list[str], tmp_path) -> list[str]:
+    (tmp_path / "dir").mkdir(exist_ok=True)
+    (tmp_path / "garbage").write_bytes(bytes(range(256)) * 4)
+    where = {"DIR": str(tmp_path / "dir"), "MISSING": str(tmp_path / "missing.file"),
+             "GARBAGE": str(tmp_path / "garbage")}  # fmt: skip
+
+    def fill(word: str) -> str:
+        word = word.replace("TMP", str(tmp_path))
+        return where.get(word, word)
+
+    base = [fill(w) for w in REQUIRED.get(name, [])]
+    bad = [fill(w) for w in case]
+    # A bad value replaces the required one of the same option.
+    for i in range(0, len(bad) - 1):
+        if bad[i].startswith("--") and bad[i] in base:
+            j = base.index(bad[i])
+            del base[j : j + 2]
+    return [*name.split(), *base, *bad]
+
+
+@pytest.mark.parametrize(
+    ("name", "case"),
+    [(name, case) for name, cases in CASES.items() for case in cases],
+    ids=lambda v: v if isinstance(v, str) else " ".join(v) or "(nothing)",
+)
+def test_bad_input_is_one_line_and_a_non_zero_exit(name, case, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    argv = _argv(name, case, tmp_path)
+
+    def started_work(*_):
+        raise StartedWork(f"masspush {' '.join(argv)} started work instead of refusing")
+
+    # Bad input is refused before any work: anything still running after 20 s started it.
+    signal.signal(signal.SIGALRM, started_work)
+    signal.alarm(20)
+    try:
+        code = main(argv)
+    except SystemExit as stop:  # argparse's usage error
+        code = stop.code
+    finally:
+        signal.alarm(0)
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert code not in (0, None), f"accepted: masspush {' '.join(argv)}"
+    assert len(lines) == 1, f"masspush {' '.join(argv)}:\n{err}"
+    assert lines[0].startswith(f"masspush {name}: error: ") or lines[0].startswith(
+        "masspush: error: "
+    ), lines[0]
+    assert "Traceback" not in err
