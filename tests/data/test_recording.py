@@ -58,6 +58,8 @@ def test_a_recording_round_trips_and_becomes_predictor_input(tmp_path):
         ({"units": {"length": "mm"}}, 1, "units", "must be"),
         ({"n_links": 1}, 1, "n_links", "integer >= 2"),
         ({"colour": "red"}, 1, "colour", "unknown header field"),
+        ({"version": True}, 1, "version", "reads version 1"),
+        ({"version": 1.0}, 1, "version", "reads version 1"),
     ],
 )
 def test_header_problems_name_line_and_field(tmp_path, change, line, field, message):
@@ -78,12 +80,22 @@ def test_header_problems_name_line_and_field(tmp_path, change, line, field, mess
         ({"masses": [0.1, 0.0]}, "masses", "> 0 (kg)"),
         ({"label": 3}, "label", "must be a string"),
         ({"speed": 3}, "speed", "unknown episode field"),
+        ({"actions": [[True, 0.5], [1.0, 0.5]]}, "actions", "holds True"),
+        ({"lengths": ["0.1", 0.12]}, "lengths", "holds '0.1'"),
+        ({"observations": [[0.0, 0.0, 0.1, 1e300]] * 3}, "observations[0][3]", "in float32"),
+        ({"masses": None}, "masses", "leave the field out"),
+        ({"label": "even\x1b[2J"}, "label", "printable"),
     ],
 )
 def test_episode_problems_name_line_and_field(tmp_path, change, field, message):
     path = write_lines(tmp_path, HEADER, EPISODE, {**EPISODE, "id": "x", **change})
     problems = check_recording(path)
     assert [(p.line, p.field) for p in problems if message in p.message] == [(3, field)]
+
+
+def test_a_line_nested_too_deeply_is_a_problem_not_a_crash(tmp_path):
+    problems = check_recording(write_lines(tmp_path, HEADER, "[" * 100_000 + "]" * 100_000))
+    assert any(p.line == 2 and "nested too deeply" in p.message for p in problems)
 
 
 def test_structural_problems_are_reported_with_their_lines(tmp_path):

@@ -160,6 +160,9 @@ def _check_lines(lines: list[str]) -> list[Problem]:
                 Problem(number, "", f"not valid JSON ({err.msg} at column {err.colno})")
             )
             continue
+        except RecursionError:
+            problems.append(Problem(number, "", "nested too deeply to be a recording's line"))
+            continue
         if not isinstance(value, dict):
             problems.append(Problem(number, "", "must be a JSON object {...}"))
             continue
@@ -186,7 +189,8 @@ def _check_header(line: int, header: dict, problems: list[Problem]) -> int | Non
         problems.append(
             Problem(line, "format", f"must be {FORMAT!r} (is this a masspush recording?)")
         )
-    if header.get("version") != VERSION:
+    version = header.get("version")
+    if not (type(version) is int and version == VERSION):  # not True, not 1.0
         problems.append(
             Problem(line, "version", f"this masspush reads version {VERSION}, "
                     f"got {header.get('version')!r}")
@@ -237,9 +241,11 @@ def _check_episode(line: int, e: dict, n_links: int | None, problems: list[Probl
             f"needs one rest pose more than there are actions (q_0 before the first push): "
             f"{len(obs)} observations, {len(acts)} actions",
         )
-    if "label" in e and not isinstance(e["label"], str):
-        bad("label", "must be a string (the class name)")
+    if "label" in e and not (isinstance(e["label"], str) and e["label"].isprintable()):
+        bad("label", "must be a string of printable characters (the class name)")
     if "masses" in e:
+        if e["masses"] is None:
+            bad("masses", "must be an array of numbers; leave the field out where unknown")
         masses = _numbers(e["masses"], "masses", line, problems, shape=(n_links,))
         if masses is not None and np.any(masses <= 0):
             bad("masses", "link masses must be > 0 (kg)")
@@ -252,6 +258,12 @@ def _numbers(value, name, line, problems, shape) -> np.ndarray | None:
     if value is None:
         return None
     want = " x ".join("k" if s is None else str(s) for s in shape)
+    leaf = _first_non_number(value)
+    if leaf is not None:
+        problems.append(
+            Problem(line, name, f"must be a {want} array of numbers, holds {leaf!r}"[:200])
+        )
+        return None
     try:
         array = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
@@ -264,12 +276,29 @@ def _numbers(value, name, line, problems, shape) -> np.ndarray | None:
             Problem(line, name, f"must be a {want} array of numbers, got shape {array.shape}")
         )
         return None
-    bad = np.argwhere(~np.isfinite(array))
+    # The predictor reads float32: a value beyond its range would become infinite there.
+    bad = np.argwhere(~np.isfinite(array) | (np.abs(array) > FLOAT32_MAX))
     if len(bad):
         index = "".join(f"[{i}]" for i in bad[0])
-        problems.append(Problem(line, f"{name}{index}", "must be a finite number"))
+        problems.append(Problem(line, f"{name}{index}", "must be a finite number (in float32)"))
         return None
     return array
+
+
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
+def _first_non_number(value: Any) -> Any:
+    """The first leaf of nested lists that is not a JSON number (a boolean is not one, nor
+    a string), or None where all are."""
+    stack = [value]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, list):
+            stack.extend(reversed(item))
+        elif isinstance(item, bool) or not isinstance(item, (int, float)):
+            return item
+    return None
 
 
 def _plain(value: Any) -> Any:
