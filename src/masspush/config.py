@@ -47,6 +47,17 @@ def check_choice(name: str, value: Any, choices: tuple, optional: bool = False) 
         raise ValueError(f"{name} must be one of {list(choices)}, got {value!r}")
 
 
+def check_input(path: str, name: str) -> None:
+    """Raise ValueError unless `path` is an existing file (not a directory)."""
+    from pathlib import Path
+
+    p = Path(path)
+    if p.is_dir():
+        raise ValueError(f"{name}: {path} is a directory, not a file")
+    if not p.exists():
+        raise ValueError(f"{name}: no file at {path}")
+
+
 def check_output(path: str, name: str, suffixes: tuple[str, ...] = ()) -> None:
     """Raise ValueError unless `path` can be written as a file: not a directory, in a
     directory that exists or can be made, not read-only, ending in one of `suffixes`. Checked

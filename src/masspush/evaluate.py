@@ -14,12 +14,11 @@ the TRAIN stream that datasets are collected from, so evaluation never reuses a 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
-from masspush.config import EnvConfig, check_int
+from masspush.config import EnvConfig, check_input, check_int
 from masspush.metrics import (
     all_metrics,
     paired_difference_interval,
@@ -68,10 +67,7 @@ class EvaluateConfig:
         check_int("seed", self.seed, 0)
         check_int("workers", self.workers, optional=True)
         if self.paired_with is not None:
-            path = Path(self.paired_with)
-            if not path.is_file():
-                what = "is a directory" if path.is_dir() else "does not exist"
-                raise ValueError(f"paired_with: {path} {what}")
+            check_input(self.paired_with, "paired_with")
 
 
 @dataclass

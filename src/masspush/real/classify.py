@@ -4,11 +4,10 @@ recording of labelled episodes (`masspush.real.finetune` holds the classifier it
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
-from masspush.config import check_output
+from masspush.config import check_input, check_output
 from masspush.data.recording import read_recording
 from masspush.learn.predictor import load_model
 from masspush.models import resolve_model
@@ -24,14 +23,6 @@ from masspush.real.finetune import (
     save_classifier,
 )
 from masspush.settings import get_setting
-
-
-def _check_file(path: str, name: str) -> None:
-    p = Path(path)
-    if p.is_dir():
-        raise ValueError(f"{name}: {path} is a directory, not a file")
-    if not p.exists():
-        raise ValueError(f"{name}: no file at {path}")
 
 
 @dataclass(frozen=True)
@@ -52,7 +43,7 @@ class FinetuneJob:
     """TOML file with custom settings."""
 
     def __post_init__(self) -> None:
-        _check_file(self.episodes, "episodes")
+        check_input(self.episodes, "episodes")
         if self.predictor_out is None:
             check_output(self.out, "out")
 
@@ -100,8 +91,8 @@ class ClassifyJob:
     """Recording to classify."""
 
     def __post_init__(self) -> None:
-        _check_file(self.classifier, "classifier")
-        _check_file(self.episodes, "episodes")
+        check_input(self.classifier, "classifier")
+        check_input(self.episodes, "episodes")
 
 
 def classify(job: ClassifyJob) -> list[str]:

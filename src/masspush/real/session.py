@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from masspush.config import check_int, check_output
+from masspush.config import check_input, check_int, check_output
 from masspush.data.recording import Recording, read_recording, write_recording
 from masspush.learn.policy import model_policy
 from masspush.learn.predictor import load_model
@@ -68,8 +68,7 @@ class SessionConfig:
         if self.robot == "replay":
             if self.episodes_file is None:
                 raise ValueError("the replay backend needs --episodes-file (a recording)")
-            if not Path(self.episodes_file).is_file():
-                raise ValueError(f"episodes_file: no recording file at {self.episodes_file}")
+            check_input(self.episodes_file, "episodes_file")
             if self.masses is not None:
                 raise ValueError("masses pins a simulated chain's masses; a replay has its own")
             if self.segments != 1:
