@@ -11,7 +11,9 @@ Sources named in the comments:
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
 from typing import Any
 
 Range = tuple[float, float]
@@ -49,8 +51,6 @@ def check_choice(name: str, value: Any, choices: tuple, optional: bool = False) 
 
 def check_input(path: str, name: str) -> None:
     """Raise ValueError unless `path` is an existing file (not a directory)."""
-    from pathlib import Path
-
     p = Path(path)
     if p.is_dir():
         raise ValueError(f"{name}: {path} is a directory, not a file")
@@ -62,9 +62,6 @@ def check_output(path: str, name: str, suffixes: tuple[str, ...] = ()) -> None:
     """Raise ValueError unless `path` can be written as a file: not a directory, in a
     directory that exists or can be made, not read-only, ending in one of `suffixes`. Checked
     before any work, so that a run never fails at its save."""
-    import os
-    from pathlib import Path
-
     p = Path(path)
     if suffixes and p.suffix.lower() not in suffixes:
         raise ValueError(f"{name} must end in {' or '.join(suffixes)}, got {str(path)!r}")

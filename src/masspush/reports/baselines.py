@@ -173,6 +173,15 @@ PAPER_TABLE = {
 }
 
 
+def paper_settings(text: str) -> list[str]:
+    """ "all" (the paper's six settings) or a comma-separated list of named settings, each
+    checked to exist."""
+    names = list(PAPER_TABLE) if text == "all" else text.split(",")
+    for name in names:
+        get_setting(name)
+    return names
+
+
 def baselines_table(pusher: str | None = None, root: str | Path = ".") -> str:
     """Markdown: measured RP / RP+ beside the paper's, for every setting with results, each
     with `pusher` (default: the setting's own)."""

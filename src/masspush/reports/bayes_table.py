@@ -19,7 +19,7 @@ from masspush.config import check_int
 from masspush.evaluate import evaluate
 from masspush.metrics import paired_difference_interval, paired_percentage_errors
 from masspush.models import load_estimator
-from masspush.reports.baselines import PAPER_TABLE
+from masspush.reports.baselines import PAPER_TABLE, paper_settings
 from masspush.settings import get_setting
 
 MODELS = ("bayes", "bayes-random", "tp+")
@@ -140,11 +140,10 @@ class BayesTableConfig:
     """Only rebuild the table from the cache."""
 
     def names(self) -> list[str]:
-        return list(PAPER_TABLE) if self.settings == "all" else self.settings.split(",")
+        return paper_settings(self.settings)
 
     def __post_init__(self) -> None:
-        for name in self.names():
-            get_setting(name)
+        self.names()  # each named setting exists
         check_int("episodes", self.episodes)
         check_int("tp_episodes", self.tp_episodes)
         unknown = set(self.models) - set(MODELS)

@@ -21,7 +21,13 @@ from typing import Any
 from masspush.learn.predictor import FAST
 from masspush.learn.recipe import Recipe, RecipeConfig
 from masspush.models import ship, shipped_file
-from masspush.reports.baselines import PAPER_TABLE, baseline_paths, run_baselines, ship_baselines
+from masspush.reports.baselines import (
+    PAPER_TABLE,
+    baseline_paths,
+    paper_settings,
+    run_baselines,
+    ship_baselines,
+)
 from masspush.settings import get_setting
 
 COLUMNS = ("rp", "rp+", "tp", "tp+")
@@ -80,11 +86,10 @@ class ReproduceConfig:
     """Ship every finished model into the package."""
 
     def names(self) -> list[str]:
-        return list(PAPER_TABLE) if self.settings == "all" else self.settings.split(",")
+        return paper_settings(self.settings)
 
     def __post_init__(self) -> None:
-        for name in self.names():
-            get_setting(name)
+        self.names()  # each named setting exists
 
 
 def reproduce(config: ReproduceConfig, recipe: RecipeConfig, root: str | Path = ".") -> list[Path]:
