@@ -143,3 +143,72 @@ def test_failed_push_ends_the_episode_with_a_reason():
     obs, _, terminated, _, info = env.step(np.array([1.0, -0.5]))
     assert terminated and info["failure"] == "timeout"
     assert np.all(np.isfinite(obs))
+
+
+# Generated bad input (issue 26): every constructor argument and reset option given values
+# of every wrong kind. Each must end in a ValueError of one line, nothing else.
+WRONG = [None, True, "x", "2", np.nan, np.inf, -1, 0, 2.5, 1e6, [], [[1, 2]], {}, (1, 0)]
+# The values of WRONG that an argument does accept: no pushes means the default; no noise.
+ACCEPTED = {("pushes", None), ("obs_noise", 0), ("action_noise", 0)}
+OPTION_KEYS = ("masses", "friction", "lengths", "joint_angles", "root_pose")
+
+
+def _wrong_constructor_args():
+    for key in ("n_links", "mass_range", "pushes", "obs_noise", "action_noise", "pusher"):
+        for value in WRONG:
+            if type(value) is not int or (key, value) not in ACCEPTED:
+                if not (key == "pushes" and value is None):
+                    yield key, value
+    yield "n_links", 65  # beyond MAX_LINKS
+    yield "mass_range", (1.0, 1e6)  # a tonne is the most a link may weigh
+    yield "obs_noise", 5.0
+    yield "action_noise", 2.0
+    yield "pushes", 10**6
+
+
+@pytest.mark.parametrize(("key", "value"), list(_wrong_constructor_args()), ids=repr)
+def test_every_wrong_constructor_argument_is_one_clear_error(key, value):
+    with pytest.raises(ValueError) as err:
+        ChainEnv(**{key: value})
+    assert "\n" not in str(err.value) and str(err.value)
+
+
+def _wrong_options():
+    for key in OPTION_KEYS:
+        for value in WRONG:
+            yield key, value
+        size = {"masses": 2, "lengths": 2, "joint_angles": 1, "root_pose": 3, "friction": 1}[key]
+        for item in (True, "0.5", None, np.nan):
+            yield key, [item] * size if size > 1 or key != "friction" else item
+    yield "masses", [1e6, 1.0]  # beyond any table
+    yield "masses", [5.0, 0.5]  # beyond the setting's range
+    yield "friction", 10.0
+    yield "lengths", [10.0, 0.1]
+    yield "root_pose", [1e9, 0.0, 0.0]
+    yield "joint_angles", [3.0]
+
+
+@pytest.mark.parametrize(("key", "value"), list(_wrong_options()), ids=repr)
+def test_every_wrong_reset_option_is_one_clear_error(key, value):
+    with pytest.raises(ValueError) as err:
+        ChainEnv().reset(seed=0, options={key: value})
+    assert "\n" not in str(err.value) and str(err.value)
+
+
+def test_out_of_range_chains_when_allowed_and_long_chains():
+    env = ChainEnv(allow_out_of_range=True)
+    _, info = env.reset(seed=0, options={"masses": [5.0, 0.5], "friction": 1.5})
+    np.testing.assert_allclose(info["masses"], [5.0, 0.5])
+    with pytest.raises(ValueError, match="outside what a chain on a table can have"):
+        env.reset(seed=0, options={"masses": [1e6, 1.0]})  # absurd is refused always
+
+
+@pytest.mark.slow
+def test_the_longest_supported_chain_resets_and_pushes():
+    from masspush.config import MAX_LINKS
+
+    env = ChainEnv(n_links=MAX_LINKS)
+    _, info = env.reset(seed=0)
+    assert info["failure"] is None  # 1 MB of arena was not enough above ~40 links
+    _, _, _, _, info = env.step(np.array([0.3, 0.0], np.float32))
+    assert info["failure"] in (None, "timeout")

@@ -3,7 +3,7 @@ import pytest
 import masspush.models as models_module
 from masspush.evaluate import EvaluateConfig
 from masspush.learn.predictor import load_model
-from masspush.models import SHIPPED_DIR, evaluate_model, resolve_model
+from masspush.models import SHIPPED_DIR, evaluate_model, resolve_model, shipped_file
 
 
 def test_unknown_models_are_clear_errors(model_file, tmp_path, monkeypatch):
@@ -37,3 +37,14 @@ def test_every_shipped_model_loads_by_name_with_its_policy():
             expected = "random" if path.stem.startswith("rp") else "learned"
             assert meta.get("policy", "random") == expected, (name, path.name)
             assert (policy.name == "random") == (expected == "random")
+
+
+def test_a_model_of_another_setting_runs_only_when_allowed(tmp_path):
+    other = str(shipped_file("2link-0.1-10", "rp"))
+    with pytest.raises(ValueError, match=r"trained for setting '2link-0.1-10'.*--allow-mismatch"):
+        evaluate_model(EvaluateConfig("2link-1-10", other, episodes=2))
+    allowed = evaluate_model(EvaluateConfig("2link-1-10", other, episodes=4, allow_mismatch=True))
+    assert allowed.setting == "2link-1-10" and allowed.episodes > 0
+    with pytest.raises(ValueError, match=r"n_links 3, not 2$"):  # never across chain lengths
+        three = str(shipped_file("3link-1-10", "rp"))
+        evaluate_model(EvaluateConfig("2link-1-10", three, episodes=2, allow_mismatch=True))

@@ -33,6 +33,24 @@ def _check_range(name: str, value: Range, *, low: float | None = None) -> None:
         raise ValueError(f"{name} must not go below {low}, got {value!r}")
 
 
+class MismatchError(ValueError):
+    """A file made for another setting, pusher or chain than it is used with."""
+
+
+def check_match(
+    what: str, where: str, theirs: Any, ours: Any, allow: bool = False, allowable: bool = True
+) -> None:
+    """Refuse `where` (a file), made for `what` `theirs`, where `ours` is asked for; unless
+    `allow` (--allow-mismatch) and the difference is one a model can be run across
+    (`allowable`: not the number of links, which changes every array's shape)."""
+    if theirs is None or theirs == ours:
+        return
+    if allow and allowable:
+        return
+    hint = "; pass --allow-mismatch to use it anyway" if allowable else ""
+    raise MismatchError(f"{where} is for {what} {theirs!r}, not {ours!r}{hint}")
+
+
 def check_int(name: str, value: Any, low: int = 1, optional: bool = False) -> None:
     """Raise ValueError unless value is an integer >= low (or None, where `optional`)."""
     if optional and value is None:
@@ -80,8 +98,46 @@ def _check_positive(name: str, value: float) -> None:
 
 
 def _check_non_negative(name: str, value: float) -> None:
-    if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+    if not (
+        isinstance(value, (int, float)) and not isinstance(value, bool)
+        and math.isfinite(value) and value >= 0
+    ):  # fmt: skip
         raise ValueError(f"{name} must be a non-negative finite number, got {value!r}")
+
+
+MAX_PUSHES = 1000
+"""The most pushes one episode may have. The paper's episodes have 2-4 pushes and our
+longest runs 32; episodes are padded to the longest, so a stated limit keeps a typo from
+costing gigabytes [ours]."""
+MAX_NOISE = 1.0
+"""The largest noise std accepted (m, rad, action units): beyond, an observation says
+nothing and an action is clipped to the box's corners [ours]."""
+
+MAX_LINKS = 64
+"""The longest chain supported. Every length up to it resets and pushes (tests/sim); a
+64-link episode already takes seconds, and 100 links tens of seconds a push [ours]."""
+
+PLAUSIBLE: dict[str, tuple[float, float]] = {
+    "masses": (1e-3, 1e3),
+    "friction": (1e-3, 3.0),
+    "lengths": (1e-3, 2.0),
+    "root_xy": (-1e3, 1e3),
+}
+"""Limits no chain on a table can be outside, whatever a setting or `allow_out_of_range`
+says: a link of 1 g to a tonne, a friction coefficient up to 3 (rubber on rubber is about
+1-2), links of 1 mm to 2 m, a chain within a kilometre of the table's origin. Values beyond
+are typos or unit mistakes (grams for kilograms), and MuJoCo would not simulate them
+faithfully at a 1 ms step [ours]."""
+
+
+def check_plausible(name: str, values: Any) -> None:
+    """Raise ValueError unless every value of `name` (a PLAUSIBLE key) is within its limits."""
+    lo, hi = PLAUSIBLE[name]
+    items = [float(v) for v in (values if isinstance(values, (list, tuple)) else [values])]
+    if not all(lo <= v <= hi for v in items):  # NaN fails too
+        raise ValueError(
+            f"{name} {items} outside what a chain on a table can have, [{lo:g}, {hi:g}]"
+        )
 
 
 @dataclass(frozen=True)
@@ -155,7 +211,8 @@ class PhysicsConfig:
     """Bytes of MuJoCo arena (contacts, constraints) per simulation. The batch reserves one
     per chain; MuJoCo's default for these models (13.6 MB) reserved 7.7 GB of virtual memory
     per 1000 chains, enough to make a later fork fail. 1 MB gives identical results (the
-    scene needs a few dozen contacts) at 0.6 GB per 1000 chains [ours]."""
+    scene needs a few dozen contacts) at 0.6 GB per 1000 chains [ours]. Long chains get more
+    (`arena_bytes`)."""
     max_velocity: float = 500.0
     """Any chain velocity component above this (m/s, rad/s) is an 'unstable' failure [ours]."""
     max_tilt: float = 0.1
@@ -168,6 +225,8 @@ class PhysicsConfig:
     def __post_init__(self) -> None:
         if not isinstance(self.n_links, int) or isinstance(self.n_links, bool) or self.n_links < 2:
             raise ValueError(f"n_links must be an integer >= 2, got {self.n_links!r}")
+        if self.n_links > MAX_LINKS:
+            raise ValueError(f"n_links must be at most {MAX_LINKS} (supported), got {self.n_links}")
         _check_range("mass_range", self.mass_range)
         if float(self.mass_range[0]) <= 0:
             raise ValueError(f"mass_range must be positive, got {self.mass_range!r}")
@@ -180,6 +239,9 @@ class PhysicsConfig:
         # Normalise ranges to float tuples so configs compare and serialise cleanly.
         for name in ("mass_range", "friction_range", "length_range"):
             object.__setattr__(self, name, tuple(float(v) for v in getattr(self, name)))
+        check_plausible("masses", self.mass_range)
+        check_plausible("friction", self.friction_range)
+        check_plausible("lengths", self.length_range)
         for name in (
             "link_width",
             "link_height",
@@ -228,6 +290,13 @@ class PhysicsConfig:
         )
 
     @property
+    def arena_bytes(self) -> int:
+        """MuJoCo arena for this chain: `arena_memory`, or more for long chains, whose
+        constraint count grows with the square of the links (measured: 50 links need 2 MB,
+        100 links 4 MB; 1 kB per link squared covers both) [ours]."""
+        return max(self.arena_memory, 1024 * self.n_links**2)
+
+    @property
     def obs_dim(self) -> int:
         """Length of a chain configuration: root x, y, yaw and n - 1 joint angles."""
         return 3 + self.n_links - 1
@@ -258,8 +327,12 @@ class EnvConfig:
             object.__setattr__(self, "pushes", default_pushes(self.physics.n_links))
         if not isinstance(self.pushes, int) or isinstance(self.pushes, bool) or self.pushes < 1:
             raise ValueError(f"pushes must be an integer >= 1, got {self.pushes!r}")
-        _check_non_negative("obs_noise", self.obs_noise)
-        _check_non_negative("action_noise", self.action_noise)
+        if self.pushes > MAX_PUSHES:
+            raise ValueError(f"pushes must be at most {MAX_PUSHES}, got {self.pushes}")
+        for name in ("obs_noise", "action_noise"):
+            _check_non_negative(name, getattr(self, name))
+            if getattr(self, name) > MAX_NOISE:
+                raise ValueError(f"{name} must be at most {MAX_NOISE}, got {getattr(self, name)}")
 
 
 def physics_with(physics: PhysicsConfig | None = None, **overrides: Any) -> PhysicsConfig:

@@ -75,8 +75,10 @@ class ChainEnv(gym.Env):
     Per episode: masses ~ U(mass_range) per link; friction ~ U(0.5, 1); lengths ~
     U(0.1, 0.15) m; joint angles ~ U(-0.75, 0.75) rad; root centre ~ U(-0.1, 0.1)^2 m,
     yaw ~ U(-pi, pi). `reset(options=...)` pins any of `masses`, `friction`, `lengths`,
-    `joint_angles`, `root_pose` (x, y, yaw); other keys raise ValueError. The chain is
-    let settle on the table before q_0 is observed.
+    `joint_angles`, `root_pose` (x, y, yaw); other keys raise ValueError, and so do pinned
+    masses, friction or lengths outside the setting's ranges (unless `allow_out_of_range`)
+    and values no table holds (`masspush.config.PLAUSIBLE`). The chain is let settle on the
+    table before q_0 is observed.
 
     ## Episode end
     Terminated after `pushes` pushes (default 2 for 2 links, 3 for 3 links), or at once
@@ -92,8 +94,9 @@ class ChainEnv(gym.Env):
 
     ## Arguments
     `gymnasium.make("masspush/Chain-v0", n_links=2, mass_range=(0.1, 1.0), pushes=None,
-    obs_noise=0.01, action_noise=0.01, pusher="stiff", physics=None)`; `physics` is a
-    full `PhysicsConfig` whose n_links and mass_range the two arguments override.
+    obs_noise=0.01, action_noise=0.01, pusher="stiff", physics=None,
+    allow_out_of_range=False)`; `physics` is a full `PhysicsConfig` whose n_links and
+    mass_range the two arguments override; n_links up to `masspush.config.MAX_LINKS` (64).
     `pusher`: "stiff" (idealised, velocity-controlled), "kuka" or "ur10" (robot arms under
     the paper's operational-space control; they add the failures "arm_contact" and
     "unreachable", see docs/arms.md).
@@ -113,6 +116,7 @@ class ChainEnv(gym.Env):
         action_noise: float = 0.01,
         pusher: str = "stiff",
         physics: PhysicsConfig | None = None,
+        allow_out_of_range: bool = False,
     ):
         physics = replace(physics or PhysicsConfig(), n_links=n_links, mass_range=mass_range)
         self.config = EnvConfig(
@@ -123,6 +127,7 @@ class ChainEnv(gym.Env):
             pusher=pusher,
         )
         self.pusher = make_pusher(pusher)
+        self.allow_out_of_range = allow_out_of_range
         n = physics.n_links
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32)
         self.observation_space = gym.spaces.Box(
@@ -134,7 +139,7 @@ class ChainEnv(gym.Env):
         self._done = True
 
     @classmethod
-    def from_config(cls, config: EnvConfig) -> ChainEnv:
+    def from_config(cls, config: EnvConfig, allow_out_of_range: bool = False) -> ChainEnv:
         """The environment an `EnvConfig` describes."""
         physics = config.physics
         return cls(
@@ -145,6 +150,7 @@ class ChainEnv(gym.Env):
             action_noise=config.action_noise,
             pusher=config.pusher,
             physics=physics,
+            allow_out_of_range=allow_out_of_range,
         )
 
     @property
@@ -155,7 +161,7 @@ class ChainEnv(gym.Env):
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
-        self.chain = sample_chain(self.physics, self.np_random, options)
+        self.chain = sample_chain(self.physics, self.np_random, options, self.allow_out_of_range)
         self.sim = ChainSim(self.chain, self.physics, self.pusher)
         self._pushes_done = 0
         failure = self.sim.initial_failure

@@ -54,6 +54,9 @@ class EvaluateConfig:
     interval of the difference."""
     settings_file: str | None = None
     """TOML file with custom settings."""
+    allow_mismatch: bool = False
+    """Run a model of another setting or pusher (same number of links), or pair with a
+    result of another setting or seed."""
 
     MAX_EPISODES: ClassVar[int] = 10_000_000
     """More is a typo, not an evaluation: its arrays would not fit in memory."""

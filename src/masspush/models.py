@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from masspush.bayes.estimator import BAYES_MODELS, BayesEstimator
-from masspush.config import check_output
+from masspush.config import check_match, check_output
 from masspush.evaluate import Estimator, EvalResult, EvaluateConfig, evaluate
 from masspush.learn.estimator import PredictorEstimator
 from masspush.learn.policy import model_policy, strip_policy
@@ -66,7 +66,7 @@ def model_and_policy(
 
 def load_estimator(
     model: str | os.PathLike, setting: Setting, pusher: str | None = None,
-    bayes: dict[str, Any] | None = None, progress: bool = True,
+    bayes: dict[str, Any] | None = None, progress: bool = True, allow_mismatch: bool = False,
 ) -> Estimator:  # fmt: skip
     """The estimator called `model` for `setting`: the particle filter (bayes,
     bayes-random; its configuration changed by `bayes`, `BayesConfig` fields), or a
@@ -77,7 +77,9 @@ def load_estimator(
     if bayes:
         raise ValueError(f"bayes options apply to the particle filter, not to {model!r}")
     path = resolve_model(model, setting.name)
-    return PredictorEstimator.from_file(path, setting.name, pusher, name=str(model))
+    return PredictorEstimator.from_file(
+        path, setting.name, pusher, str(model), allow_mismatch, setting.n_links
+    )
 
 
 def ship_model(
@@ -130,7 +132,13 @@ def evaluate_model(
             raise ValueError(
                 f"paired_with: {config.paired_with} has no per-episode record (--per-episode)"
             )
-    estimator = load_estimator(config.model, spec, config.pusher, bayes, progress)
+        # Pairing matches episodes by number: only the same stream has the same chains.
+        where = f"paired_with: {config.paired_with}"
+        for what, ours in (("setting", spec.name), ("seed", config.seed)):
+            check_match(what, where, other.get(what), ours, config.allow_mismatch)
+    estimator = load_estimator(
+        config.model, spec, config.pusher, bayes, progress, config.allow_mismatch
+    )
     result = evaluate(
         spec, estimator, config.episodes, config.seed, config.workers,
         per_episode=config.per_episode or other is not None,

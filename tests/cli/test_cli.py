@@ -101,6 +101,6 @@ def test_run_on_one_lab_of_the_target_world_records_it(tmp_path, capsys):
     from masspush.data.recording import read_recording
 
     episodes = read_recording(out).episodes
-    assert len(episodes) == 2 and episodes[0]["lengths"] == episodes[1]["lengths"]
+    assert len(episodes) == 2 and episodes[0]["lengths"].tolist() == episodes[1]["lengths"].tolist()
     assert main(["run", "--robot", "stiff", "--setting", "2link-1-10", "--lab", "1"]) == 2
     assert "lab" in capsys.readouterr().err

@@ -4,30 +4,42 @@ rows fails the suite."""
 
 from __future__ import annotations
 
+import functools
+import json
 import signal
+import tempfile
+from pathlib import Path
 
 import pytest
 
 from masspush.cli import COMMANDS, main
+from masspush.models import shipped_file
 
 # Placeholders, filled per test: DIR (a directory), MISSING (no such file), GARBAGE (a file
-# of random bytes), RO (a file in a read-only directory).
+# of random bytes), FOREIGN (a good recording of another setting, 2link-0.1-1),
+# FOREIGN_RESULT (an evaluation of another setting), FOREIGN_MODEL (a model of another
+# setting), DATASET (a small dataset of the required setting, 2link-1-10).
 CASES: dict[str, list[list[str]]] = {
     "demo": [["--seed", "-1"], ["--setting", "nope"], ["--out", "DIR"], ["--model", "MISSING"],
              ["--video", "v.txt"], ["--model", "GARBAGE"]],
     "evaluate": [["--episodes", "0"], ["--episodes", "1000000000000"], ["--seed", "-1"],
                  ["--model", "nope"], ["--paired-with", "DIR"], ["--paired-with", "MISSING"],
                  ["--paired-with", "GARBAGE"], ["--setting", "nope"], ["--workers", "0"],
-                 ["--model", "DIR"], ["--model", "GARBAGE"], ["--episodes", "nan"]],
+                 ["--model", "DIR"], ["--model", "GARBAGE"], ["--episodes", "nan"],
+                 ["--paired-with", "FOREIGN_RESULT"], ["--model", "FOREIGN_MODEL"],
+                 ["--model", "THREE_LINK_MODEL", "--allow-mismatch"]],
     "run": [["--count", "0"], ["--count", "-1"], ["--pushes", "0"], ["--seed", "-1"],
             ["--robot", "nope"], ["--robot", "replay"], ["--episodes-file", "DIR"],
-            ["--masses", "nan,1"], ["--record", "DIR"], ["--lab", "1"], ["--setting", "nope"]],
+            ["--masses", "nan,1"], ["--record", "DIR"], ["--lab", "1"], ["--setting", "nope"],
+            ["--robot", "replay", "--episodes-file", "FOREIGN"], ["--masses", "50,50"],
+            ["--record", "FOREIGN"], ["--model", "FOREIGN_MODEL"]],
     "collect": [["--episodes", "0"], ["--episodes", "-1"], ["--shard-size", "0"],
                 ["--policy", "nope"], ["--setting", "nope"], ["--seed", "-1"],
                 ["--episodes", "1000000000000"], ["--out", "GARBAGE"]],
     "check-episodes": [["DIR"], ["MISSING"], ["GARBAGE"]],
     "train-predictor": [["--data", "MISSING"], ["--data", "DIR"], ["--batch-size", "0"],
-                        ["--steps", "-1"], ["--lr", "nan"], ["--episodes", "1"]],
+                        ["--steps", "-1"], ["--lr", "nan"], ["--episodes", "1"],
+                        ["--data", "DATASET", "--batch-size", "1000000000000"]],
     "baselines": [["--setting", "nope"], ["--table", "--pusher", "nope"],
                   ["--eval-episodes", "0"], ["--episodes", "1", "5"]],
     "train": [["--setting", "nope"], ["--meta-iterations", "0"], ["--ppo-steps", "0"],
@@ -36,7 +48,7 @@ CASES: dict[str, list[list[str]]] = {
     "calibrate": [["--setting", "nope"], ["--model", "MISSING"], ["--episodes", "0"],
                   ["--out", "DIR"], ["--model", "GARBAGE"]],
     "finetune": [["--episodes", "MISSING"], ["--episodes", "DIR"], ["--episodes", "GARBAGE"],
-                 ["--folds", "0"], ["--out", "DIR"]],
+                 ["--folds", "0"], ["--out", "DIR"], ["--episodes", "FOREIGN"]],
     "classify": [["--classifier", "MISSING"], ["--classifier", "GARBAGE"], ["--episodes", "DIR"]],
     "sim2real": [["--episodes-per-class", "0"], ["--severity", "2"], ["--world", "moon"],
                  ["--segments", "0"], ["--setting", "nope"]],
@@ -81,11 +93,40 @@ def test_every_command_has_cases():
     assert set(CASES) == {c.name for c in COMMANDS}
 
 
+def _foreign_recording(tmp_path) -> str:
+    from masspush.data.recording import Recording, write_recording
+
+    episode = {"id": "a", "lengths": [0.1, 0.12], "actions": [[0.5, -0.5], [1.0, 0.5]],
+               "observations": [[0.0, 0.0, 0.1, 0.2]] * 3, "label": "x"}  # fmt: skip
+    recording = Recording(2, setting="2link-0.1-1", episodes=[episode, {**episode, "id": "b"}])
+    return str(write_recording(tmp_path / "foreign.jsonl", recording))
+
+
+def _foreign_result(tmp_path) -> str:
+    result = {"setting": "2link-0.1-1", "model": "rp", "seed": 0, "per_episode": {}}
+    (tmp_path / "foreign.json").write_text(json.dumps(result))
+    return str(tmp_path / "foreign.json")
+
+
+@functools.cache
+def _dataset() -> str:
+    """A dataset of 4 episodes of 2link-1-10, made once for the whole suite."""
+    from masspush.data.dataset import collect
+    from masspush.settings import get_setting
+
+    out = Path(tempfile.mkdtemp()) / "ds"
+    collect(get_setting("2link-1-10"), out, 4, "stiff", progress=False)
+    return str(out)
+
+
 def _argv(name: str, case: list[str], tmp_path) -> list[str]:
     (tmp_path / "dir").mkdir(exist_ok=True)
     (tmp_path / "garbage").write_bytes(bytes(range(256)) * 4)
     where = {"DIR": str(tmp_path / "dir"), "MISSING": str(tmp_path / "missing.file"),
-             "GARBAGE": str(tmp_path / "garbage")}  # fmt: skip
+             "GARBAGE": str(tmp_path / "garbage"), "FOREIGN": _foreign_recording(tmp_path),
+             "FOREIGN_RESULT": _foreign_result(tmp_path), "DATASET": _dataset(),
+             "FOREIGN_MODEL": str(shipped_file("2link-0.1-1", "rp")),
+             "THREE_LINK_MODEL": str(shipped_file("3link-1-10", "rp"))}  # fmt: skip
 
     def fill(word: str) -> str:
         word = word.replace("TMP", str(tmp_path))

@@ -92,3 +92,72 @@ def test_resuming_with_other_parameters_is_refused(tmp_path):
     small(tmp_path / "d")
     with pytest.raises(DatasetError, match="different collection"):
         small(tmp_path / "d", base_seed=3)
+
+
+def _same(a, b) -> None:
+    for name in ("index", "observations", "actions", "masses"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+
+
+def test_a_finished_dataset_is_left_as_it_is(tmp_path, monkeypatch):
+    small(tmp_path / "d", episodes=20)
+    import masspush.data.dataset as dataset
+
+    def read_only(*_):
+        raise PermissionError(13, "Read-only file system", str(tmp_path / "d"))
+
+    # On read-only storage any write fails: a rerun of a finished collection writes nothing.
+    monkeypatch.setattr(dataset, "_write_json", read_only)
+    monkeypatch.setattr(dataset, "write_shard", read_only)
+    assert small(tmp_path / "d", episodes=20).episodes == 20
+    assert small(tmp_path / "d", episodes=10).episodes == 20  # complete and larger: kept
+
+
+def test_a_dataset_is_resized_only_when_asked(tmp_path):
+    whole = load_dataset(small(tmp_path / "ref", episodes=25) and tmp_path / "ref")[1]
+    small(tmp_path / "d", episodes=25)
+    (tmp_path / "d" / "shard-00001.npz").unlink()  # incomplete
+    with pytest.raises(DatasetError, match="--episodes 25 to resume it, or add --resize"):
+        small(tmp_path / "d", episodes=15)
+    assert small(tmp_path / "d", episodes=15, resize=True).episodes == 15
+    manifest, cut = load_dataset(tmp_path / "d")
+    assert manifest.episodes == 15 and not shard_path(tmp_path / "d", 2).exists()
+    _same(cut, whole.select(whole.index < 15))
+    small(tmp_path / "d", episodes=25)  # grown back: the same episodes
+    _same(load_dataset(tmp_path / "d")[1], whole)
+
+
+def test_a_full_disk_leaves_whole_shards_and_resumes(tmp_path, monkeypatch):
+    import errno
+
+    import masspush.data.dataset as dataset
+
+    whole = load_dataset(small(tmp_path / "ref") and tmp_path / "ref")[1]
+    real = np.savez_compressed
+    calls = []
+
+    def disk_fills(f, **arrays):
+        calls.append(1)
+        if len(calls) == 2:
+            f.write(b"partial")
+            raise OSError(errno.ENOSPC, "No space left on device")
+        real(f, **arrays)
+
+    monkeypatch.setattr(dataset.np, "savez_compressed", disk_fills)
+    with pytest.raises(OSError, match="the 10 episodes written are safe") as err:
+        small(tmp_path / "d")
+    assert err.value.filename.endswith("shard-00001.npz")
+    assert not list((tmp_path / "d").glob("*.tmp"))
+    small(tmp_path / "d")
+    _same(load_dataset(tmp_path / "d")[1], whole)
+
+
+def test_a_collection_larger_than_the_disk_is_refused_before_work(tmp_path, monkeypatch):
+    import shutil
+
+    import masspush.data.dataset as dataset
+
+    monkeypatch.setattr(dataset.shutil, "disk_usage", lambda _: shutil._ntuple_diskusage(1, 1, 1))
+    monkeypatch.setattr(dataset, "run_episodes", lambda *_: pytest.fail("started work"))
+    with pytest.raises(OSError, match=r"need about .* GB .* are free"):
+        small(tmp_path / "d")

@@ -28,6 +28,9 @@ EPISODE = {
 }
 
 
+NUMBERS = ("lengths", "observations", "actions", "masses")
+
+
 def write_lines(tmp_path, *objects) -> str:
     path = tmp_path / "rec.jsonl"
     path.write_text("\n".join(o if isinstance(o, str) else json.dumps(o) for o in objects) + "\n")
@@ -41,7 +44,14 @@ def test_a_recording_round_trips_and_becomes_predictor_input(tmp_path):
     recording = Recording(n_links=2, robot="ur10", setting="2link-0.1-1", episodes=[EPISODE, short])
     path = write_recording(tmp_path / "r.jsonl", recording)
     back = read_recording(path)
-    assert back.episodes == recording.episodes and back.setting == "2link-0.1-1"
+    assert back.setting == "2link-0.1-1" and len(back.episodes) == 2
+    for got, wrote in zip(back.episodes, recording.episodes, strict=True):
+        assert set(got) == set(wrote)
+        for key, value in wrote.items():
+            if key in NUMBERS:
+                np.testing.assert_allclose(got[key], value, rtol=1e-6)
+            else:
+                assert got[key] == value
     assert back.labels == ["even", None]
     episodes = back.to_episodes()
     assert episodes.observations.shape == (2, 3, 4)
@@ -124,3 +134,20 @@ def test_the_example_recording_is_valid():
 
     example = Path(__file__).parents[2] / "docs" / "examples" / "recording.jsonl"
     assert check_recording(example) == []
+
+
+def test_a_recording_read_in_pieces_is_the_whole_and_checked_first(tmp_path):
+    from masspush.data.recording import iter_recording
+
+    episodes = [{**EPISODE, "id": f"e{i}"} for i in range(7)]
+    path = write_recording(tmp_path / "r.jsonl", Recording(2, setting="s", episodes=episodes))
+    pieces = list(iter_recording(path, chunk=3))
+    assert [len(p.episodes) for p in pieces] == [3, 3, 1] and pieces[0].setting == "s"
+    whole = read_recording(path).to_episodes()
+    joined = [e["id"] for p in pieces for e in p.episodes]
+    assert joined == [f"e{i}" for i in range(7)]
+    np.testing.assert_array_equal(pieces[1].to_episodes().observations, whole.observations[3:6])
+    with open(path, "a") as f:
+        f.write("{broken\n")
+    with pytest.raises(RecordingError, match="line 9"):
+        next(iter_recording(path))  # refused before the first piece

@@ -116,7 +116,9 @@ def test_the_target_worlds_differences_can_be_scaled(run, tmp_path):
     assert scaled.robot == "masspush target world (differences x0)"
     full = read_recording(done / "learned.jsonl")
     # The same chains, seen through another world's tracker.
-    assert [e["masses"] for e in scaled.episodes] == [e["masses"] for e in full.episodes]
+    assert [e["masses"].tolist() for e in scaled.episodes] == [
+        e["masses"].tolist() for e in full.episodes
+    ]
     assert scaled.episodes[0]["observations"] != full.episodes[0]["observations"]
     # A world given outright is what the robot runs in.
     from masspush.models import model_and_policy

@@ -83,15 +83,12 @@ DEBUG_ENV = "MASSPUSH_DEBUG"
 def _one_line(err: BaseException) -> str:
     """The error as one line naming the file or argument: a recording's first problem of
     several, an operating-system error's file and reason."""
-    from masspush.data.recording import RecordingError
+    from masspush.data.recording import RecordingError, problem_count
 
     if isinstance(err, RecordingError):
         first = err.problems[0] if err.problems else ""
-        more = (
-            f"; {len(err.problems) - 1} more: masspush check-episodes"
-            if len(err.problems) > 1
-            else ""
-        )
+        others = problem_count(err.problems) - 1
+        more = f"; {others} more: masspush check-episodes" if others > 0 else ""
         return f"{str(err).splitlines()[0]}; the first: {first}{more}"
     if isinstance(err, OSError) and err.filename is not None:
         return f"{err.filename}: {err.strerror}"

@@ -17,12 +17,14 @@ partial-write states to handle for no gain at this size.
 
 from __future__ import annotations
 
+import errno
 import json
 import os
+import shutil
 import subprocess
 import time
 import zipfile
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -30,7 +32,7 @@ import numpy as np
 from tqdm import tqdm
 
 from masspush.config import EnvConfig, check_choice, check_int
-from masspush.data.rollout import POLICIES, TRAIN, Episodes, Policy, run_episodes
+from masspush.data.rollout import POLICIES, TRAIN, Episodes, Policy, empty_episodes, run_episodes
 from masspush.settings import Setting, get_setting
 
 SCHEMA_VERSION = 1
@@ -138,6 +140,8 @@ class CollectConfig:
     """Processes for an arm (default: one per core)."""
     settings_file: str | None = None
     """TOML file with custom settings."""
+    resize: bool = False
+    """Make an existing dataset hold exactly --episodes (cutting it down deletes episodes)."""
 
     MAX_EPISODES: ClassVar[int] = 100_000_000
     """More is a typo, not a dataset: 10^8 two-link episodes already take ~60 GB."""
@@ -160,7 +164,7 @@ def collect_dataset(config: CollectConfig, progress: bool = True) -> Manifest:
     return collect(
         setting, config.out, episodes=config.episodes, pusher=config.pusher or setting.pusher,
         policy=config.policy, base_seed=config.seed, shard_size=config.shard_size,
-        workers=config.workers, progress=progress,
+        workers=config.workers, progress=progress, resize=config.resize,
     )  # fmt: skip
 
 
@@ -175,10 +179,15 @@ def collect(
     env_config: EnvConfig | None = None,
     workers: int | None = None,
     progress: bool = True,
+    resize: bool = False,
 ) -> Manifest:
     """Collect `episodes` episodes into `out`, resuming whatever is already there.
 
-    `policy`: a registered policy's name, or a `Policy` object (a trained one)."""
+    `policy`: a registered policy's name, or a `Policy` object (a trained one). A larger
+    `episodes` than the directory's grows it; a smaller one is refused while the dataset is
+    incomplete, unless `resize` makes it hold exactly `episodes` (shards beyond are deleted).
+    A request that would not fit on the disk is refused before any work; a disk that fills
+    up during the collection leaves only whole shards, and the same command resumes."""
     if episodes < 1 or shard_size < 1:
         raise ValueError(f"episodes and shard_size must be >= 1, got {episodes}, {shard_size}")
     if isinstance(policy, str):
@@ -210,24 +219,69 @@ def collect(
                 f"{root} holds a different collection ({old.identity()}); "
                 "collect into another directory"
             )
-        # Growing a dataset keeps its shards: episode i is the same whatever N is.
-        manifest = Manifest(**{**asdict(old), "episodes": max(old.episodes, episodes)})
-    _write_json(root / MANIFEST, asdict(manifest))
+        manifest = _resized(root, old, episodes, resize)
+    if not (root / MANIFEST).exists() or read_manifest(root).episodes != manifest.episodes:
+        _write_json(root / MANIFEST, asdict(manifest))  # unchanged: read-only storage is fine
     todo = [j for j in range(manifest.shards) if not _complete(root, manifest, j)]
+    _check_disk(root, env_config, sum(_shard_len(manifest, j) for j in todo))
     with tqdm(
         total=manifest.episodes,
         desc=f"collecting {setting.name} ({pusher})",
         unit="ep",
         disable=not progress,
     ) as bar:
-        bar.update(manifest.episodes - sum(_shard_len(manifest, j) for j in todo))
+        done = manifest.episodes - sum(_shard_len(manifest, j) for j in todo)
+        bar.update(done)
         for j in todo:
             lo = j * shard_size
             indices = np.arange(lo, lo + _shard_len(manifest, j))
             eps = run_episodes(env_config, policy, indices, TRAIN, base_seed, workers)
-            write_shard(shard_path(root, j), eps)
+            try:
+                write_shard(shard_path(root, j), eps)
+            except OSError as err:
+                raise OSError(err.errno, (
+                    f"{err.strerror}; the {done} episodes written are safe: "
+                    "free space and rerun the same command to resume"),
+                    str(shard_path(root, j))) from err  # fmt: skip
             bar.update(len(indices))
+            done += len(indices)
     return manifest
+
+
+def _resized(root: Path, old: Manifest, episodes: int, resize: bool) -> Manifest:
+    """The manifest after a request for `episodes`: grown, kept, or (`resize`) cut down."""
+    if episodes >= old.episodes:
+        # Growing a dataset keeps its shards: episode i is the same whatever N is.
+        return replace(old, episodes=episodes)
+    if not resize:
+        if all(_complete(root, old, j) for j in range(old.shards)):
+            return old  # complete and larger than asked: nothing to do
+        raise DatasetError(
+            f"{root} is a collection of {old.episodes:,} episodes, not yet complete; rerun "
+            f"with --episodes {old.episodes} to resume it, or add --resize to make it hold "
+            f"{episodes:,}"
+        )
+    new = replace(old, episodes=episodes)
+    for j in range(new.shards, old.shards):
+        shard_path(root, j).unlink(missing_ok=True)
+    last = new.shards - 1
+    if _complete(root, old, last) and _shard_len(new, last) < _shard_len(old, last):
+        part = read_shard(shard_path(root, last))
+        keep = np.arange(len(part)) < _shard_len(new, last)
+        write_shard(shard_path(root, last), part.select(keep))
+    return new
+
+
+def _check_disk(root: Path, env_config: EnvConfig, episodes: int) -> None:
+    """Refuse, before any work, a collection that would not fit on the disk."""
+    n = env_config.physics.n_links
+    one = empty_episodes(1, env_config.pushes, n)
+    need = episodes * sum(getattr(one, f.name).nbytes for f in fields(Episodes))
+    free = shutil.disk_usage(root).free
+    if need > free:
+        raise OSError(errno.ENOSPC, (
+            f"the {episodes:,} episodes to collect need about {need / 1e9:.2f} GB "
+            f"(uncompressed), {free / 1e9:.2f} GB are free"), str(root))  # fmt: skip
 
 
 def _shard_len(manifest: Manifest, j: int) -> int:
@@ -256,9 +310,13 @@ def _write_json(path: Path, data: dict) -> None:
 
 def write_shard(path: Path, eps: Episodes) -> None:
     tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "wb") as f:
-        np.savez_compressed(f, **{fl.name: getattr(eps, fl.name) for fl in fields(Episodes)})
-    os.replace(tmp, path)  # atomic: a shard is either whole or absent
+    try:
+        with open(tmp, "wb") as f:
+            np.savez_compressed(f, **{fl.name: getattr(eps, fl.name) for fl in fields(Episodes)})
+        os.replace(tmp, path)  # atomic: a shard is either whole or absent
+    except BaseException:
+        tmp.unlink(missing_ok=True)  # a full disk or a kill leaves no partial file behind
+        raise
 
 
 def read_shard(path: Path) -> Episodes:

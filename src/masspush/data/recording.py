@@ -22,12 +22,14 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from masspush.config import MAX_PUSHES
 from masspush.data.rollout import Episodes, empty_episodes
 
 FORMAT, VERSION = "masspush-episodes", 1
@@ -54,14 +56,17 @@ class RecordingError(ValueError):
 
     def __init__(self, path: str | os.PathLike, problems: list[Problem]):
         self.problems = problems
+        total = problem_count(problems)
         shown = "\n".join(f"  {p}" for p in problems[:20])
-        more = f"\n  ... and {len(problems) - 20} more" if len(problems) > 20 else ""
-        super().__init__(f"{path}: {len(problems)} problem(s)\n{shown}{more}")
+        more = f"\n  ... and {total - 20} more" if total > 20 else ""
+        super().__init__(f"{path}: {total} problem(s)\n{shown}{more}")
 
 
 @dataclass
 class Recording:
-    """A recording's header and episodes (lists as in the file)."""
+    """A recording's header and episodes: each a dict of the file's fields, its numbers as
+    NumPy arrays where read from a file (observations and actions float32, lengths and
+    masses float64); lists or arrays where written."""
 
     n_links: int
     robot: str = ""
@@ -109,79 +114,220 @@ def write_recording(path: str | os.PathLike, recording: Recording) -> Path:
     lines = [json.dumps(header)]
     for e in recording.episodes:
         lines.append(json.dumps({k: _plain(v) for k, v in e.items() if v is not None}))
-    text = "\n".join(lines) + "\n"
-    problems = _check_lines(text.splitlines())
+    checker = _Checker()
+    for number, line in enumerate(lines, 1):
+        checker.feed(number, line)
+    problems = checker.finish()
     if problems:
         raise RecordingError(path, problems)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(text)
+    path.write_text("\n".join(lines) + "\n")
     return path
 
 
 def check_recording(path: str | os.PathLike) -> list[Problem]:
-    """Every problem in a recording file (an empty list: the file is good)."""
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except FileNotFoundError:
-        return [Problem(0, "", f"no file at {path}")]
-    except UnicodeDecodeError as err:
-        return [Problem(0, "", f"not UTF-8 text: {err}")]
-    return _check_lines(text.splitlines())
+    """Every problem in a recording file (an empty list: the file is good; at most
+    `MAX_PROBLEMS` are listed, `problem_count` counts them all).
+
+    The file is read line by line: memory does not grow with its size."""
+    return _checked(path).finish()
+
+
+def _checked(path: str | os.PathLike) -> _Checker:
+    checker = _Checker()
+    for number, line in _lines(path, checker):
+        checker.feed(number, line)
+    return checker
 
 
 def read_recording(path: str | os.PathLike) -> Recording:
-    """A checked recording; RecordingError lists every problem otherwise."""
-    problems = check_recording(path)
+    """A checked recording; RecordingError lists every problem otherwise.
+
+    One pass, line by line; each episode's numbers are kept as NumPy arrays (observations
+    and actions in float32, the precision the predictor reads), a few bytes a number."""
+    checker = _Checker()
+    episodes: list[dict[str, Any]] = []
+    for number, line in _lines(path, checker):
+        value = checker.feed(number, line)
+        if value is not None and not checker.problems and number > checker.header_line:
+            episodes.append(_compact(value))
+    problems = checker.finish()
     if problems:
         raise RecordingError(path, problems)
-    lines = [line for line in Path(path).read_text(encoding="utf-8").splitlines() if line.strip()]
-    header = json.loads(lines[0])
+    header = checker.header
     return Recording(
         n_links=header["n_links"],
         robot=header.get("robot", ""),
         setting=header.get("setting"),
         notes=header.get("notes", ""),
-        episodes=[json.loads(line) for line in lines[1:]],
+        episodes=episodes,
     )
 
 
-# --- the checks -----------------------------------------------------------------------------
-def _check_lines(lines: list[str]) -> list[Problem]:
-    numbered = [(i + 1, line) for i, line in enumerate(lines) if line.strip()]
-    if not numbered:
-        return [Problem(1, "", "the file is empty; line 1 must be the header")]
-    problems: list[Problem] = []
-    objects = []
-    for number, line in numbered:
+def iter_recording(path: str | os.PathLike, chunk: int = 4096) -> Iterator[Recording]:
+    """A large recording in pieces of at most `chunk` episodes (each a `Recording` with the
+    file's header), after checking the whole file: memory grows with `chunk`, not with the
+    file. RecordingError, before the first piece, where the file has a problem."""
+    checker = _checked(path)
+    if checker.finish():
+        raise RecordingError(path, checker.problems)
+    header = checker.header
+
+    def piece(episodes: list[dict[str, Any]]) -> Recording:
+        return Recording(n_links=header["n_links"], robot=header.get("robot", ""),
+                         setting=header.get("setting"), notes=header.get("notes", ""),
+                         episodes=episodes)  # fmt: skip
+
+    episodes: list[dict[str, Any]] = []
+    with open(path, encoding="utf-8") as f:
+        for number, line in enumerate(f, 1):
+            if number > checker.header_line and line.strip():
+                episodes.append(_compact(json.loads(line)))
+                if len(episodes) == chunk:
+                    yield piece(episodes)
+                    episodes = []
+    if episodes:
+        yield piece(episodes)
+
+
+def problem_count(problems: list[Problem]) -> int:
+    """How many problems a `check_recording` list stands for (it keeps the first
+    MAX_PROBLEMS)."""
+    return len(problems) + getattr(problems, "more", 0)
+
+
+MAX_LINE_BYTES = 8 << 20
+"""The longest line read, in characters: 1000 pushes of a 64-link chain fit in a few MB."""
+MAX_PROBLEMS = 1000
+"""Problems listed at most; the rest are counted."""
+MAX_LABELS = 100
+"""Distinct labels `check-episodes` lists at most."""
+
+
+class _Problems(list):
+    """A list of problems that keeps the first MAX_PROBLEMS and counts the rest."""
+
+    more = 0
+
+    def append(self, problem: Problem) -> None:
+        if len(self) < MAX_PROBLEMS:
+            super().append(problem)
+        else:
+            self.more += 1
+
+
+def _lines(path: str | os.PathLike, checker: _Checker) -> Iterator[tuple[int, str]]:
+    """The file's lines with their numbers; an unreadable file, a line too long or text
+    that is not UTF-8 becomes a problem of `checker` instead."""
+    number = 0
+    try:
+        with open(path, encoding="utf-8") as f:
+            while line := f.readline(MAX_LINE_BYTES + 1):
+                number += 1
+                if len(line) > MAX_LINE_BYTES:
+                    while (rest := f.readline(1 << 20)) and not rest.endswith("\n"):
+                        pass  # skip the rest of the line without holding it
+                    checker.problems.append(Problem(number, "", (
+                        f"longer than {MAX_LINE_BYTES >> 20} MiB; an episode holds at most "
+                        f"{MAX_PUSHES} pushes")))  # fmt: skip
+                    checker.seen(number)
+                    continue
+                yield number, line
+    except FileNotFoundError:
+        checker.problems.append(Problem(0, "", f"no file at {path}"))
+    except IsADirectoryError:
+        checker.problems.append(Problem(0, "", f"{path} is a directory, not a recording"))
+    except UnicodeDecodeError as err:
+        checker.problems.append(Problem(number + 1, "", f"not UTF-8 text: {err.reason}"))
+
+
+class _Checker:
+    """Checks a recording one line at a time, keeping only the header and the ids seen."""
+
+    def __init__(self) -> None:
+        self.problems: list[Problem] = _Problems()
+        self.header: dict[str, Any] = {}
+        self.header_line = 0  # 0: no line seen yet
+        self.n_links: int | None = None
+        self.ids: dict[str, int] = {}
+        self.episodes = 0
+        self.readable_header = False
+        self.labels: set[str] = set()  # the first MAX_LABELS distinct ones
+
+    def seen(self, number: int) -> None:
+        """A non-blank line that could not be read (the header, if it was the first)."""
+        if not self.header_line:
+            self.header_line = number
+
+    def feed(self, number: int, line: str) -> dict[str, Any] | None:
+        """Check one line; the parsed object where it is a good one."""
+        if not line.strip():
+            return None
+        first = not self.header_line
+        self.seen(number)
+        value = self._parse(number, line)
+        if first:
+            if value is not None:
+                self.readable_header = True
+                self.header = value
+                self.n_links = _check_header(number, value, self.problems)
+            return value
+        if value is None or not self.readable_header:
+            return None  # no readable header: an episode cannot be judged
+        before = problem_count(self.problems)
+        self.episodes += 1
+        _check_episode(number, value, self.n_links, self.problems)
+        key = value.get("id")
+        if isinstance(key, str):
+            if key in self.ids:
+                self.problems.append(
+                    Problem(number, "id", f"{_text(key)} repeats line {self.ids[key]}'s id")
+                )
+            self.ids.setdefault(key, number)
+        label = value.get("label")
+        if isinstance(label, str) and len(self.labels) < MAX_LABELS:
+            self.labels.add(label)
+        return value if problem_count(self.problems) == before else None
+
+    def _parse(self, number: int, line: str) -> dict[str, Any] | None:
         try:
             value = json.loads(line)
         except json.JSONDecodeError as err:
-            problems.append(
-                Problem(number, "", f"not valid JSON ({err.msg} at column {err.colno})")
-            )
-            continue
+            message = f"not valid JSON ({err.msg} at column {err.colno})"
+            self.problems.append(Problem(number, "", message))
+            return None
         except RecursionError:
-            problems.append(Problem(number, "", "nested too deeply to be a recording's line"))
-            continue
+            self.problems.append(Problem(number, "", "nested too deeply to be a recording's line"))
+            return None
         if not isinstance(value, dict):
-            problems.append(Problem(number, "", "must be a JSON object {...}"))
-            continue
-        objects.append((number, value))
-    if not objects or objects[0][0] != numbered[0][0]:
-        return problems  # no readable header: nothing else can be judged
-    header_line, header = objects[0]
-    n_links = _check_header(header_line, header, problems)
-    if len(objects) == 1 and not problems:
-        problems.append(Problem(header_line, "", "the header is followed by no episode"))
-    ids: dict[str, int] = {}
-    for number, episode in objects[1:]:
-        _check_episode(number, episode, n_links, problems)
-        key = episode.get("id")
-        if isinstance(key, str):
-            if key in ids:
-                problems.append(Problem(number, "id", f"{key!r} repeats line {ids[key]}'s id"))
-            ids.setdefault(key, number)
-    return problems
+            self.problems.append(Problem(number, "", "must be a JSON object {...}"))
+            return None
+        return value
+
+    def finish(self) -> list[Problem]:
+        if not self.header_line and not self.problems:
+            self.problems.append(Problem(1, "", "the file is empty; line 1 must be the header"))
+        elif self.readable_header and not self.episodes and not self.problems:
+            self.problems.append(
+                Problem(self.header_line, "", "the header is followed by no episode")
+            )
+        return self.problems
+
+
+def _compact(episode: dict[str, Any]) -> dict[str, Any]:
+    """A checked episode with its numbers as arrays (a tenth of the memory of lists)."""
+    out = dict(episode)
+    for key, dtype in (("observations", np.float32), ("actions", np.float32),
+                       ("lengths", np.float64), ("masses", np.float64)):  # fmt: skip
+        if key in out:
+            out[key] = np.asarray(out[key], dtype)
+    return out
+
+
+def _text(value: str) -> str:
+    """A string from a file as it may be shown: escaped, and cut short."""
+    shown = ascii(value)
+    return shown if len(shown) <= 60 else shown[:57] + "..."
 
 
 def _check_header(line: int, header: dict, problems: list[Problem]) -> int | None:
@@ -218,8 +364,11 @@ def _check_episode(line: int, e: dict, n_links: int | None, problems: list[Probl
     for key in ("id", "lengths", "observations", "actions"):
         if key not in e:
             bad(key, "missing (required)")
-    if "id" in e and not (isinstance(e["id"], str) and e["id"]):
-        bad("id", "must be a non-empty string")
+    if "id" in e and not (isinstance(e["id"], str) and e["id"] and e["id"].isprintable()):
+        bad("id", "must be a non-empty string of printable characters")
+    for key in ("lengths", "observations", "actions"):
+        if key in e and e[key] is None:
+            bad(key, "must be an array of numbers, not null")
     if n_links is None:
         return
     d = 3 + n_links - 1
@@ -231,6 +380,8 @@ def _check_episode(line: int, e: dict, n_links: int | None, problems: list[Probl
     if acts is not None:
         if len(acts) == 0:
             bad("actions", "an episode needs at least one push")
+        if len(acts) > MAX_PUSHES:
+            bad("actions", f"{len(acts)} pushes; an episode holds at most {MAX_PUSHES}")
         outside = np.argwhere(np.abs(acts) > 1.0)
         if len(outside):
             k, j = outside[0]
@@ -316,12 +467,15 @@ def _plain(value: Any) -> Any:
 def check_report(path: str | os.PathLike) -> tuple[bool, list[str]]:
     """`masspush check-episodes`: whether a recording is good, and what to say of it (every
     problem with its line and field, or what it holds)."""
-    problems = check_recording(path)
+    checker = _checked(path)
+    problems = checker.finish()
     if problems:
-        return False, [f"{path}: {problem}" for problem in problems]
-    recording = read_recording(path)
-    labels = sorted({label for label in recording.labels if label is not None})
+        more = problem_count(problems) - len(problems)
+        return False, [f"{path}: {problem}" for problem in problems] + (
+            [f"{path}: ... and {more} more problem(s)"] if more else []
+        )
+    labels = sorted(checker.labels)
     return True, [
-        f"{path}: good: {len(recording.episodes)} episode(s) of a {recording.n_links}-link "
+        f"{path}: good: {checker.episodes} episode(s) of a {checker.n_links}-link "
         f"chain" + (f", labels {labels}" if labels else "")
     ]

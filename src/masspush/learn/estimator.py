@@ -31,12 +31,14 @@ class PredictorEstimator:
     @classmethod
     def from_file(
         cls, path: str | os.PathLike, setting: str, pusher: str | None = None,
-        name: str | None = None,
+        name: str | None = None, allow_mismatch: bool = False, n_links: int | None = None,
     ) -> PredictorEstimator:  # fmt: skip
         """The model file `path` (trained for `setting`), pushed by `pusher` (the pusher it
-        was trained with by default), its policy and, where one lies beside it, its head."""
-        predictor, meta = load_model(path, setting=setting, pusher=pusher)
-        head = load_head(head_path(path), setting) if head_path(path).exists() else None
+        was trained with by default), its policy and, where one lies beside it, its head.
+        `allow_mismatch`: run a model of another setting or pusher (of `n_links` links)."""
+        predictor, meta = load_model(path, setting, pusher, allow_mismatch, n_links)
+        trained_for = meta.get("setting", {}).get("name", setting)
+        head = load_head(head_path(path), trained_for) if head_path(path).exists() else None
         return cls(predictor, model_policy(meta, path), pusher or meta.get("pusher", IDEAL_PUSHER),
                    name or str(path), str(path), head)  # fmt: skip
 

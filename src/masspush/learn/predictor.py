@@ -25,13 +25,14 @@ import torch
 from torch import nn
 from tqdm import tqdm
 
+from masspush.config import MismatchError, check_match
 from masspush.data.rollout import Episodes
 
 MODEL_FORMAT = "masspush-predictor"
 MODEL_VERSION = 1
 
 
-class ModelMismatchError(ValueError):
+class ModelMismatchError(MismatchError):
     """A model file used with a setting or pusher it was not trained for."""
 
 
@@ -181,17 +182,36 @@ class PredictorRun:
             raise ValueError(f"episodes must be an integer >= 2, got {self.episodes!r}")
 
 
+BATCH_BYTES_PER_PUSH = 10_000
+"""Training memory per episode of a batch and push, bytes: a batch of 20,000 two-push
+episodes took 400 MB above the model's, one of 100,000 took 1.6 GB (forward, backward and
+optimiser step on this machine's CPU build) [ours, measured]."""
+
+
+def check_batch_memory(batch_size: int, pushes: int) -> None:
+    """Refuse, before any work, a batch whose training step would not fit in memory."""
+    need = batch_size * pushes * BATCH_BYTES_PER_PUSH
+    have = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    if need > have // 2:
+        raise ValueError(
+            f"batch_size {batch_size:,}: a step on {pushes}-push episodes needs about "
+            f"{need / 2**30:.1f} GiB, more than half of this machine's {have / 2**30:.0f} GiB"
+        )
+
+
 def train_on_dataset(
     run: PredictorRun, config: TrainConfig, progress: bool = True
 ) -> tuple[Path, dict[str, Any]]:
     """Train a predictor on a dataset; returns the model file and the training summary."""
-    from masspush.data.dataset import code_version, load_dataset
+    from masspush.data.dataset import code_version, load_dataset, read_manifest
 
-    manifest, episodes = load_dataset(run.data, limit=run.episodes)
+    manifest = read_manifest(run.data)  # checked before the episodes are loaded
     if manifest.setting["name"] != run.setting:
         raise ValueError(
             f"{run.data} holds setting {manifest.setting['name']!r}, not {run.setting!r}"
         )
+    check_batch_memory(config.batch_size, manifest.pushes)
+    manifest, episodes = load_dataset(run.data, limit=run.episodes)
     meta = {
         "setting": manifest.setting,
         "pusher": manifest.pusher,
@@ -238,9 +258,11 @@ def read_torch_file(path: str | os.PathLike, what: str) -> Any:
 
 
 def load_model(
-    path: str | os.PathLike, setting: str | None = None, pusher: str | None = None
-) -> tuple[MassPredictor, dict[str, Any]]:
-    """Load a predictor; refuse it for another setting or pusher than it was trained for."""
+    path: str | os.PathLike, setting: str | None = None, pusher: str | None = None,
+    allow_mismatch: bool = False, n_links: int | None = None,
+) -> tuple[MassPredictor, dict[str, Any]]:  # fmt: skip
+    """Load a predictor; refuse it for another setting or pusher than it was trained for
+    (unless `allow_mismatch`), and always for another number of links (`n_links`)."""
     payload = read_torch_file(path, "model")
     if not isinstance(payload, dict) or payload.get("format") != MODEL_FORMAT:
         raise ValueError(f"{path} is not a masspush predictor")
@@ -250,16 +272,19 @@ def load_model(
             f"this masspush reads {MODEL_VERSION}"
         )
     meta = payload["meta"]
-    trained_for = meta.get("setting", {}).get("name")
-    if setting is not None and trained_for != setting:
+    trained = meta.get("setting", {})
+    if setting is not None and trained.get("name") != setting and not allow_mismatch:
         raise ModelMismatchError(
-            f"{path} was trained for setting {trained_for!r}, not {setting!r}; "
-            "use a model trained for this setting"
+            f"{path} was trained for setting {trained.get('name')!r}, not {setting!r}; use a "
+            "model trained for this setting (or --allow-mismatch)"
         )
-    if pusher is not None and meta.get("pusher") != pusher:
+    if pusher is not None and meta.get("pusher") != pusher and not allow_mismatch:
         raise ModelMismatchError(
-            f"{path} was trained with the {meta.get('pusher')!r} pusher, not {pusher!r}"
+            f"{path} was trained with the {meta.get('pusher')!r} pusher, not {pusher!r} "
+            "(--allow-mismatch to use it anyway)"
         )
+    if n_links is not None:
+        check_match("n_links", str(path), trained.get("n_links"), n_links, allowable=False)
     model = MassPredictor(**payload["arch"])
     model.load_state_dict(payload["state_dict"])
     model.eval()

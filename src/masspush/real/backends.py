@@ -23,6 +23,7 @@ class SimRobot:
         seed: int = 0,
         masses: tuple[float, ...] | None = None,
         pushes: int | None = None,
+        allow_out_of_range: bool = False,
     ):
         from dataclasses import replace
 
@@ -36,7 +37,7 @@ class SimRobot:
         # (runs of the policy, `run_segments`, push on).
         if pushes is not None:
             config = replace(config, pushes=pushes)
-        self.env = ChainEnv.from_config(config)
+        self.env = ChainEnv.from_config(config, allow_out_of_range)
         self.n_links = self.setting.n_links
         self.seed = seed
         self.options = None if masses is None else {"masses": list(masses)}
@@ -146,6 +147,7 @@ def make_robot(
     seed: int = 0,
     masses: tuple[float, ...] | None = None,
     lab: int | None = None,
+    allow_out_of_range: bool = False,
 ) -> Robot:
     """A robot by backend name: stiff, kuka, ur10 (simulated), target (the sim-to-real
     target world, `masspush.real.target_world`; `lab` keeps one lab's constants) or replay (a
@@ -153,7 +155,7 @@ def make_robot(
     if lab is not None and backend != "target":
         raise ValueError(f"a lab is one draw of the target world; backend {backend!r} has none")
     if backend in PUSHERS:
-        return SimRobot(setting, backend, seed, masses)
+        return SimRobot(setting, backend, seed, masses, allow_out_of_range=allow_out_of_range)
     if backend == "target":
         return TargetWorldRobot(setting, seed=seed, masses=masses, lab=lab)
     if backend == "replay":

@@ -7,8 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from masspush.config import check_input, check_output
-from masspush.data.recording import read_recording
+from masspush.config import check_input, check_match, check_output
+from masspush.data.recording import iter_recording, read_recording
 from masspush.learn.predictor import load_model
 from masspush.models import resolve_model
 from masspush.real.finetune import (
@@ -41,6 +41,8 @@ class FinetuneJob:
     """Instead: fine-tune the predictor itself into this directory (needs the masses)."""
     settings_file: str | None = None
     """TOML file with custom settings."""
+    allow_mismatch: bool = False
+    """Use a recording or predictor of another setting (same number of links)."""
 
     def __post_init__(self) -> None:
         check_input(self.episodes, "episodes")
@@ -53,13 +55,11 @@ def finetune(job: FinetuneJob, config: ClassifierConfig) -> list[str]:
     the predictor); the report."""
     setting = get_setting(job.setting, job.settings_file)
     path = resolve_model(job.model, setting.name)
-    predictor, meta = load_model(path, setting.name)
+    predictor, meta = load_model(
+        path, setting.name, allow_mismatch=job.allow_mismatch, n_links=setting.n_links
+    )
     recording = read_recording(job.episodes)
-    if recording.n_links != setting.n_links:
-        raise ValueError(
-            f"{job.episodes} holds {recording.n_links}-link chains, setting {setting.name!r} "
-            f"has {setting.n_links} links"
-        )
+    _check_recording_fits(recording, job.episodes, setting.name, setting.n_links, job)
     episodes = recording.to_episodes()
     if job.predictor_out:
         out = finetune_predictor(path, episodes, job.predictor_out, recording=str(job.episodes))
@@ -81,6 +81,14 @@ def finetune(job: FinetuneJob, config: ClassifierConfig) -> list[str]:
     return [*lines, f"saved {saved} (trained on all)"]
 
 
+def _check_recording_fits(recording, where, setting: str, n_links, job) -> None:
+    """A recording read by a predictor of `setting`: of that setting (unless
+    --allow-mismatch) and always of its number of links."""
+    if n_links is not None:  # classifiers name their predictor's; a predictor always does
+        check_match("n_links", str(where), recording.n_links, n_links, allowable=False)
+    check_match("setting", str(where), recording.setting, setting, job.allow_mismatch)
+
+
 @dataclass(frozen=True)
 class ClassifyJob:
     """`masspush classify`: a saved classifier applied to recorded episodes."""
@@ -89,6 +97,8 @@ class ClassifyJob:
     """The classifier file (from `masspush finetune`)."""
     episodes: str
     """Recording to classify."""
+    allow_mismatch: bool = False
+    """Classify a recording of another setting (same number of links)."""
 
     def __post_init__(self) -> None:
         check_input(self.classifier, "classifier")
@@ -99,28 +109,29 @@ def classify(job: ClassifyJob) -> list[str]:
     """Each episode's class and probability, and the accuracy on the labelled ones."""
     model, classes, meta = load_classifier(job.classifier)
     predictor, _ = load_model(meta["predictor"], meta["setting"])
-    recording = read_recording(job.episodes)
-    if recording.setting is not None and recording.setting != meta["setting"]:
-        raise ValueError(
-            f"{job.episodes} was recorded in setting {recording.setting!r}; the classifier "
-            f"reads a {meta['setting']!r} predictor"
-        )
+    n_links = meta.get("predictor_meta", {}).get("setting", {}).get("n_links")
     # Classifiers saved before runs could be read one by one averaged them.
     reading = ClassifierConfig(
         features=meta.get("features", "estimate"),
         segment=meta.get("segment", 0),
         runs=meta.get("runs", "average"),
     )
-    features, owner = classifier_inputs(predictor, recording.to_episodes(), reading)
-    probs = np.exp(episode_log_probs(model, features, owner, len(recording.episodes)))
-    lines, right = [], 0
-    for episode, p in zip(recording.episodes, probs, strict=True):
-        guess = classes[int(p.argmax())]
-        truth = episode.get("label")
-        right += guess == truth
-        mark = "" if truth is None else f"  (label {truth}{', right' if guess == truth else ''})"
-        lines.append(f"{episode['id']}: {guess}  p={p.max():.2f}{mark}")
-    known = sum(e.get("label") is not None for e in recording.episodes)
+    lines, right, known = [], 0, 0
+    # Piece by piece: a recording of any size is classified in the memory of one piece.
+    for i, piece in enumerate(iter_recording(job.episodes)):
+        if i == 0:
+            _check_recording_fits(piece, job.episodes, meta["setting"], n_links, job)
+        features, owner = classifier_inputs(predictor, piece.to_episodes(), reading)
+        probs = np.exp(episode_log_probs(model, features, owner, len(piece.episodes)))
+        for episode, p in zip(piece.episodes, probs, strict=True):
+            guess = classes[int(p.argmax())]
+            truth = episode.get("label")
+            right += guess == truth
+            known += truth is not None
+            mark = (
+                "" if truth is None else f"  (label {truth}{', right' if guess == truth else ''})"
+            )
+            lines.append(f"{episode['id']}: {guess}  p={p.max():.2f}{mark}")
     if known:
         lines.append(f"accuracy on the {known} labelled episode(s): {100 * right / known:.1f} %")
     return lines

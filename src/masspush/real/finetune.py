@@ -170,13 +170,23 @@ def predictor_features(
         mean = total / np.bincount(owner, minlength=len(episodes))[:, None]
         return (np.log(mean) if kind == "estimate" else mean).astype(np.float32)
     q0, steps = step_inputs(episodes, predictor.features_kind)
+    last, rows = episodes.last_seen(), []
     with torch.no_grad():
         predictor.eval()
-        out = predictor.features(torch.as_tensor(q0), torch.as_tensor(steps))
-        if kind == "estimate":
-            out = torch.log_softmax(predictor.head(out), dim=-1)
-        out = out.numpy()
-    return out[np.arange(len(out)), episodes.last_seen()]
+        # In chunks: the LSTM's activations for every push of a large recording at once
+        # would take gigabytes, a chunk's a few tens of MB.
+        for lo in range(0, max(len(q0), 1), FEATURE_CHUNK):
+            part = slice(lo, lo + FEATURE_CHUNK)
+            out = predictor.features(torch.as_tensor(q0[part]), torch.as_tensor(steps[part]))
+            if kind == "estimate":
+                out = torch.log_softmax(predictor.head(out), dim=-1)
+            out = out.numpy()
+            rows.append(out[np.arange(len(out)), last[part]])
+    return np.concatenate(rows)
+
+
+FEATURE_CHUNK = 16_384
+"""Episodes read by the predictor at once for the classifier's features."""
 
 
 def run_features(

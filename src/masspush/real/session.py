@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from masspush.config import check_input, check_int, check_output
+from masspush.config import check_input, check_int, check_match, check_output
 from masspush.data.recording import Recording, read_recording, write_recording
 from masspush.learn.policy import model_policy
 from masspush.learn.predictor import load_model
@@ -34,7 +34,8 @@ class SessionConfig:
     count: int | None = None
     """Episodes to run (default: 1; replay: all of the recording's)."""
     pushes: int | None = None
-    """Pushes per episode (per run with --segments; default: the setting's)."""
+    """Pushes per episode (per run with --segments; default: the setting's; replay: each
+    episode's recorded pushes)."""
     seed: int = 0
     """The simulated chains' first seed (episode i has seed + i)."""
     record: str | None = None
@@ -43,6 +44,12 @@ class SessionConfig:
     """Simulated robots: pin the link masses, kg (m1,m2,...)."""
     label: str | None = None
     """Class label written into the recording."""
+    allow_out_of_range: bool = False
+    """Simulated robots: accept --masses outside the setting's mass range (the model was
+    not trained on such chains)."""
+    allow_mismatch: bool = False
+    """Use a model, or replay a recording, of another setting or pusher (same number of
+    links)."""
     segments: int = 1
     """Run the policy this many times in a row on each chain (each --pushes pushes) and
     average the runs' estimates."""
@@ -87,35 +94,58 @@ def run_session(config: SessionConfig, say=print) -> list[dict]:
     """Run the episodes, `say`ing each push and estimate; returns the episodes as a
     recording's (written to `config.record` where given)."""
     setting = get_setting(config.setting, config.settings_file)
-    if config.masses is not None and len(config.masses) != setting.n_links:
-        raise ValueError(f"masses: {len(config.masses)} given, setting has {setting.n_links} links")
+    if config.masses is not None:
+        if len(config.masses) != setting.n_links:
+            raise ValueError(
+                f"masses: {len(config.masses)} given, setting has {setting.n_links} links"
+            )
+        lo, hi = setting.mass_range
+        if not config.allow_out_of_range and not all(lo <= m <= hi for m in config.masses):
+            raise ValueError(
+                f"masses {list(config.masses)} outside setting {setting.name!r}'s mass range "
+                f"[{lo:g}, {hi:g}]; pass --allow-out-of-range to simulate them anyway"
+            )
     existing = _recording_to_extend(config.record, setting)
     path = resolve_model(config.model, setting.name)
-    predictor, meta = load_model(path, setting.name)
-    robot = make_robot(
-        config.robot, setting, config.episodes_file, config.seed, config.masses, config.lab
+    predictor, meta = load_model(
+        path, setting.name, allow_mismatch=config.allow_mismatch, n_links=setting.n_links
     )
+    robot = make_robot(
+        config.robot, setting, config.episodes_file, config.seed, config.masses, config.lab,
+        config.allow_out_of_range,
+    )  # fmt: skip
     if robot.n_links != setting.n_links:
         robot.close()
         raise ValueError(
             f"the robot's chain has {robot.n_links} links, setting {setting.name!r} has "
             f"{setting.n_links}"
         )
+    pushes = setting.env_config().pushes if config.pushes is None else config.pushes
     if config.robot == "replay":
-        _check_replay(robot.recording, setting, config)
+        try:
+            _check_replay(robot.recording, setting, config)
+        except ValueError:
+            robot.close()
+            raise
         policy = RecordedPolicy(robot)
         count = len(robot.recording.episodes) if config.count is None else config.count
-        say(f"Replaying {count} recorded episode(s) with their recorded pushes.")
+        # A replay plays every recorded push unless --pushes asks for fewer.
+        episode_pushes = [
+            len(e["actions"]) if config.pushes is None else config.pushes
+            for e in robot.recording.episodes[:count]
+        ]
+        which = "" if config.pushes is None else f", the first {config.pushes} of each"
+        say(f"Replaying {count} recorded episode(s) with their recorded pushes{which}.")
     else:
         policy, count = model_policy(meta, path), config.count or 1
+        episode_pushes = [pushes] * count
         say(f"Pushes chosen by the {policy.name} policy of model {config.model!r}.")
-    pushes = setting.env_config().pushes if config.pushes is None else config.pushes
     recorded = []
     try:
         for i in range(count):
             say(f"episode {i + 1}:")
             episode = run_segments(
-                robot, predictor, policy, pushes, config.segments, print_push,
+                robot, predictor, policy, episode_pushes[i], config.segments, print_push,
                 seed=config.seed + i,
             )  # fmt: skip
             if len(episode.run_estimates) > 1:
@@ -136,17 +166,22 @@ def run_session(config: SessionConfig, say=print) -> list[dict]:
 
 def _check_replay(recording: Recording, setting: Setting, config: SessionConfig) -> None:
     """A replay plays its recording's pushes as they were: the recording must be of this
-    setting and hold no more pushes per episode than asked for."""
-    if recording.setting is not None and recording.setting != setting.name:
-        raise ValueError(
-            f"{config.episodes_file} was recorded in setting {recording.setting!r}, "
-            f"not {setting.name!r}"
-        )
+    setting, and hold at least the pushes asked for in every episode it plays."""
+    where = str(config.episodes_file)
+    check_match("setting", where, recording.setting, setting.name, config.allow_mismatch)
     if config.count is not None and config.count > len(recording.episodes):
         raise ValueError(
             f"count: {config.episodes_file} holds {len(recording.episodes)} episode(s), "
             f"not {config.count}"
         )
+    if config.pushes is not None:
+        for e in recording.episodes[: config.count]:
+            if len(e["actions"]) < config.pushes:
+                raise ValueError(
+                    f"pushes: episode {e['id']!r} of {config.episodes_file} recorded "
+                    f"{len(e['actions'])} push(es), not {config.pushes}; leave --pushes out "
+                    "to play each episode's own"
+                )
 
 
 def _recording_to_extend(path: str | None, setting: Setting) -> Recording | None:

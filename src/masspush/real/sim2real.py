@@ -141,7 +141,14 @@ def record_classes(
         robot = (
             TargetWorldRobot(setting, world, seed=first, masses=masses, lab=config.lab)
             if config.world == "target"
-            else SimRobot(setting, seed=first, masses=masses, pushes=pushes * config.segments)
+            # The classes are the paper's masses in any setting, as in the target world.
+            else SimRobot(
+                setting,
+                seed=first,
+                masses=masses,
+                pushes=pushes * config.segments,
+                allow_out_of_range=True,
+            )
         )
         got = 0
         while got < config.episodes_per_class:

@@ -350,7 +350,9 @@ class TargetWorldRobot:
             if self.ranges is not None:
                 self.world = self.ranges.sample(self.rng)
                 self.physics = self.world.physics(self.setting.physics())
-            chain = sample_chain(self.physics, self.rng, self.pinned)
+            # The target world differs from training on purpose: a lab's table and
+            # chains need not lie in the setting's ranges.
+            chain = sample_chain(self.physics, self.rng, self.pinned, allow_out_of_range=True)
             self.field = FrictionField(chain.friction, self.world, self.rng)
             self._chain = chain
             if self.lab is not None:

@@ -16,7 +16,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from masspush.config import PhysicsConfig
+from masspush.config import PhysicsConfig, check_plausible
 
 #: Option keys accepted by `sample_chain` to pin parameters instead of sampling them.
 PIN_KEYS = ("masses", "friction", "lengths", "joint_angles", "root_pose")
@@ -70,6 +70,10 @@ class ChainParams:
 
 
 def _check_vector(name: str, value: Any, length: int, positive: bool = False) -> None:
+    if isinstance(value, (str, bytes)) or any(
+        isinstance(v, (bool, str, bytes, np.bool_)) for v in np.ravel(np.asarray(value, object))
+    ):  # numpy would read True as 1.0 and "0.5" as 0.5
+        raise ValueError(f"{name} must be {length} numbers, got {value!r}")
     try:
         arr = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
@@ -82,15 +86,38 @@ def _check_vector(name: str, value: Any, length: int, positive: bool = False) ->
         raise ValueError(f"{name} must be positive, got {value!r}")
 
 
+_RANGES = {"masses": "mass_range", "friction": "friction_range", "lengths": "length_range"}
+
+
+def _check_pinned(physics: PhysicsConfig, key: str, value: Any, allow_out_of_range: bool) -> None:
+    values = np.atleast_1d(np.asarray(value, dtype=float)).tolist()
+    if key == "root_pose":
+        check_plausible("root_xy", values[:2])
+    if key not in _RANGES:
+        return
+    check_plausible(key, values)
+    lo, hi = getattr(physics, _RANGES[key])
+    slack = 1e-6 * max(abs(lo), abs(hi))  # recordings round to 6 digits
+    if not allow_out_of_range and not all(lo - slack <= v <= hi + slack for v in values):
+        raise ValueError(
+            f"pinned {key} {values} outside the setting's {_RANGES[key]} [{lo:g}, {hi:g}]; "
+            "pass allow_out_of_range to simulate them anyway"
+        )
+
+
 def sample_chain(
     physics: PhysicsConfig,
     rng: np.random.Generator,
     pinned: Mapping[str, Any] | None = None,
+    allow_out_of_range: bool = False,
 ) -> ChainParams:
     """Draw a chain from the setting's distributions; `pinned` fixes any of PIN_KEYS.
 
     Every draw is made whether or not it is pinned, so pinning one parameter leaves the
-    others exactly as the same seed would have drawn them.
+    others exactly as the same seed would have drawn them. Pinned masses, friction and
+    lengths must lie in the setting's ranges (a model trained on them knows nothing
+    outside) unless `allow_out_of_range`; values no table holds (`config.PLAUSIBLE`) are
+    refused always.
     """
     pinned = dict(pinned or {})
     unknown = sorted(set(pinned) - set(PIN_KEYS))
@@ -115,12 +142,15 @@ def sample_chain(
     for key, value in pinned.items():
         expected = {"masses": n, "lengths": n, "joint_angles": n - 1, "root_pose": 3}.get(key)
         if key == "friction":
+            if isinstance(value, (bool, str, bytes, np.bool_)):
+                raise ValueError(f"friction must be a number, got {value!r}")
             try:
                 value = float(value)
             except (TypeError, ValueError):
                 raise ValueError(f"friction must be a number, got {value!r}") from None
         else:
             _check_vector(key, value, expected, positive=key in ("masses", "lengths"))
+        _check_pinned(physics, key, value, allow_out_of_range)
         drawn[key] = value
     angles = np.asarray(drawn["joint_angles"], dtype=float)
     if np.any(np.abs(angles) > physics.joint_limit):
@@ -152,7 +182,7 @@ def build_spec(
     spec = mujoco.MjSpec()
     spec.modelname = f"chain{chain.n_links}"
     spec.compiler.degree = False  # MjSpec defaults to degrees: joint ranges here are radians
-    spec.memory = physics.arena_memory
+    spec.memory = physics.arena_bytes
     opt = spec.option
     opt.timestep = physics.timestep
     # Stiff velocity servos need implicit damping; elliptic cones give isotropic Coulomb

@@ -18,7 +18,7 @@ ARM_NAMES = sorted(ARMS)
 def sim_with(pusher, masses=(0.3, 0.3), **pins):
     physics = PhysicsConfig(n_links=2)
     options = {**STRAIGHT, "masses": list(masses), "friction": 0.7, **pins}
-    chain = sample_chain(physics, np.random.default_rng(0), options)
+    chain = sample_chain(physics, np.random.default_rng(0), options, allow_out_of_range=True)
     return ChainSim(chain, physics, make_pusher(pusher) if isinstance(pusher, str) else pusher)
 
 

@@ -1,0 +1,52 @@
+import pytest
+
+from masspush.data.recording import Recording, write_recording
+from masspush.data.rollout import RandomPolicy
+from masspush.learn.predictor import load_model
+from masspush.models import resolve_model
+from masspush.real.backends import SimRobot
+from masspush.real.robot import run_estimation
+from masspush.real.session import SessionConfig, run_session
+
+SETTING = "2link-1-10"
+
+
+@pytest.fixture(scope="module")
+def recording_of_long_episodes(tmp_path_factory):
+    """Two episodes of 4 and 3 pushes, twice and one and a half times the setting's 2."""
+    predictor = load_model(resolve_model("rp+", SETTING), SETTING)[0]
+    episodes = []
+    for pushes in (4, 3):
+        for seed in range(20):  # the first chain that no push throws off the table
+            robot = SimRobot(SETTING, seed=100 * seed, pushes=pushes)
+            run = run_estimation(robot, predictor, RandomPolicy(), pushes, seed=seed)
+            if run.failure is None:
+                break
+        episodes.append(run.recorded(id=f"e{pushes}"))
+    path = tmp_path_factory.mktemp("rec") / "long.jsonl"
+    return write_recording(path, Recording(2, setting=SETTING, episodes=episodes))
+
+
+def test_replay_plays_every_recorded_push(recording_of_long_episodes):
+    said = []
+    config = SessionConfig("replay", SETTING, "rp+", str(recording_of_long_episodes))
+    replayed = run_session(config, say=said.append)
+    assert [len(e["actions"]) for e in replayed] == [4, 3]
+    first = SessionConfig("replay", SETTING, "rp+", str(recording_of_long_episodes), pushes=2)
+    assert [len(e["actions"]) for e in run_session(first, say=said.append)] == [2, 2]
+    assert any("the first 2 of each" in line for line in said)
+
+
+def test_replay_refuses_more_pushes_than_were_recorded(recording_of_long_episodes):
+    config = SessionConfig("replay", SETTING, "rp+", str(recording_of_long_episodes), pushes=4)
+    with pytest.raises(ValueError, match=r"episode 'e3' .* recorded 3 push"):
+        run_session(config, say=lambda _: None)
+
+
+def test_pinned_masses_outside_the_setting_need_to_be_allowed():
+    config = SessionConfig("stiff", SETTING, "rp+", masses=(20.0, 20.0))
+    with pytest.raises(ValueError, match=r"outside setting '2link-1-10'.*--allow-out-of-range"):
+        run_session(config, say=lambda _: None)
+    allowed = SessionConfig("stiff", SETTING, "rp+", masses=(20.0, 20.0), allow_out_of_range=True)
+    (episode,) = run_session(allowed, say=lambda _: None)
+    assert list(episode["masses"]) == [20.0, 20.0]
