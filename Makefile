@@ -13,6 +13,8 @@ $(STAMP): pyproject.toml
 	# would pull a multi-GB CUDA build. (torch==2.13.0 is found on this machine's disk.)
 	$(PY) -m pip install --quiet torch==2.13.0
 	$(PY) -m pip install --quiet -e '.[dev]'
+	# The arms' control loop in C (the Python law runs where no compiler is).
+	$(PY) -m masspush.sim.pushers.compiled
 	rm -f $(VENV)/.installed-* && touch $(STAMP)
 
 demo: $(STAMP)

@@ -128,3 +128,11 @@ def test_model_files_round_trip_and_refuse_other_settings(episodes, tmp_path):
     path.write_bytes(b"not a model")
     with pytest.raises(ValueError, match="not a readable model file"):
         load_model(path)
+
+
+def test_a_batch_larger_than_the_memory_is_refused_with_the_estimate():
+    from masspush.learn.predictor import check_batch_memory
+
+    check_batch_memory(256, 2)  # the fast option's batch fits anywhere
+    with pytest.raises(ValueError, match=r"batch_size 1,000,000,000,000: .* needs about"):
+        check_batch_memory(10**12, 2)

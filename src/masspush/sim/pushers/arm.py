@@ -19,6 +19,7 @@ A push in which any arm geometry other than the end-effector touches the chain i
 
 from __future__ import annotations
 
+import ctypes
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,6 +27,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+import masspush.sim.pushers.compiled as compiled
 from masspush.config import PhysicsConfig
 from masspush.sim.actions import PushGeometry
 from masspush.sim.pushers.base import StepHook
@@ -138,6 +140,10 @@ class ArmPusher:
         self._model: mujoco.MjModel | None = None  # the model the handles belong to
         self._handles: _Handles | None = None
         self._reference_q: np.ndarray | None = None
+        self._compiled: tuple | None = None
+        self.use_compiled = True
+        """Run the control loop compiled where the library is there (`compiled`); False:
+        the Python law, the reference."""
 
     # --- scene ------------------------------------------------------------------------
     def add_to(self, spec: mujoco.MjSpec, physics: PhysicsConfig) -> None:
@@ -227,6 +233,13 @@ class ArmPusher:
         to_face = run_up + physics.pusher_clearance
         deadline = math.ceil((2 * to_face / push.speed + 0.05) / dt)
         velocity = np.concatenate([direction * push.speed, np.zeros(3)])
+        lib = compiled.library() if self.use_compiled and on_step is None else None
+        if lib is not None:
+            failure = self._deliver_compiled(
+                lib, model, data, h, standoff, target_r, velocity, direction, hold, deadline
+            )
+            self.park(model, data)
+            return failure
         failure = None
         step = 0
         while True:
@@ -257,6 +270,46 @@ class ArmPusher:
         # 5. Out of the way.
         self.park(model, data)
         return failure
+
+    def _deliver_compiled(
+        self, lib, model, data, h: _Handles, standoff, target_r, velocity, direction,
+        hold: int, deadline: int,
+    ) -> str | None:  # fmt: skip
+        """Steps 3 and 4 of `deliver` in compiled code (`compiled`, osc_law.c): the same law
+        and the same steps, without a return to Python between them."""
+        arm = self._compiled_arm(model, h)
+        ratio = ctypes.c_double(self.trace.max_torque_ratio)
+        speeds = np.zeros(deadline + hold + 1)
+        contact, steps = ctypes.c_int(), ctypes.c_int()
+        m, d = ctypes.c_void_p(model._address), ctypes.c_void_p(data._address)
+        push = compiled.target(standoff, target_r, velocity, free_axis=direction)
+        code = lib.masspush_velocity_phase(
+            m, d, ctypes.byref(arm), ctypes.byref(push), hold, deadline,
+            speeds.ctypes.data, ctypes.byref(contact), ctypes.byref(steps), ctypes.byref(ratio),
+        )  # fmt: skip
+        self.trace.tip_speed = speeds[: steps.value].tolist()
+        self.trace.contact_step = contact.value if contact.value >= 0 else None
+        if code == 0:
+            back = compiled.target(standoff, target_r, np.zeros(6))
+            retract = round(RETRACT_TIME / model.opt.timestep)
+            code = lib.masspush_retract(m, d, ctypes.byref(arm), ctypes.byref(back), retract,
+                                        ctypes.byref(ratio))  # fmt: skip
+        self.trace.max_torque_ratio = ratio.value
+        return {0: None, 1: "arm_contact", 2: "unreachable"}[code]
+
+    def _compiled_arm(self, model: mujoco.MjModel, h: _Handles) -> compiled.Arm:
+        if self._compiled is None or self._compiled[0] is not h:
+            arm = compiled.Arm()
+            arm.dof0 = h.dofs.start
+            arm.act[:] = h.act.tolist()
+            arm.site, arm.ee = h.site, h.ee
+            flags = (h.is_arm.astype(np.uint8), h.is_chain.astype(np.uint8))
+            arm.is_arm, arm.is_chain = flags[0].ctypes.data, flags[1].ctypes.data
+            arm.torque_limit[:] = h.torque_limit.tolist()
+            arm.kp, arm.kd, arm.task_damping = self.kp, self.kd, TASK_DAMPING
+            arm.jac, arm.minv_jt = h.jac.ctypes.data, h.minv_jt.ctypes.data
+            self._compiled = (h, arm, flags)  # the arrays live as long as the struct
+        return self._compiled[1]
 
     def place_base(self, model: mujoco.MjModel, data: mujoco.MjData, pos, yaw: float) -> None:
         """Put the arm's base at `pos` on the table, facing `yaw`."""

@@ -1,4 +1,5 @@
-"""The idealised stiff pusher: a velocity-servoed tip, fast and blind to the mass scale."""
+"""The idealised stiff pusher: a velocity-servoed tip, fast and nearly blind to the mass
+scale."""
 
 from __future__ import annotations
 
@@ -26,8 +27,9 @@ class StiffPusher:
     for `push_hold_time`, and is then parked far away (an instant retraction).
 
     The pusher is 10^4 kg behind a velocity servo with a one-step time constant, so a
-    chain's mass barely slows it: scaling every link mass by a common factor leaves the
-    rest pose unchanged, as with a position-controlled arm.
+    chain's mass barely slows it: a common scale of the link masses changes the rest pose
+    far less than their distribution does. The finite mass is what is left of the scale
+    (docs/simulation.md has the measured size).
     """
 
     name = "stiff"
