@@ -14,7 +14,7 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet torch==2.13.0
 	$(PY) -m pip install --quiet -e '.[dev]'
 	# The arms' control loop in C (the Python law runs where no compiler is).
-	$(PY) -m masspush.sim.pushers.compiled
+	$(PY) -c 'import masspush.sim.pushers.compiled as c; c.main()'
 	rm -f $(VENV)/.installed-* && touch $(STAMP)
 
 demo: $(STAMP)

@@ -60,6 +60,8 @@ CASES: dict[str, list[list[str]]] = {
     "bench sim": [["--links", "1"], ["--chains", "0"], ["--mass-range", "1", "0"],
                   ["--seed", "-1"]],
     "bench pushers": [["--pushers", "nope"], ["--pushes", "0"], ["--links", "1"]],
+    "bench arm": [["--links", "1"], ["--arm", "stiff"], ["--arm", "nope"], ["--episodes", "0"],
+                  ["--check-pushes", "0"], ["--links", "65"], ["--seed", "-1"]],
     "bench data": [["--episodes", "-1"], ["--pusher", "nope"], ["--workers", "0"]],
     "bench train": [["--episodes", "0"], ["--steps", "0"]],
     "bench ppo": [["--steps", "0"], ["--envs", "0"], ["--pusher", "nope"]],

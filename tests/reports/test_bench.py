@@ -24,3 +24,17 @@ def test_ppo_benchmark_reports_a_rate_per_learner():
     rows = bench_ppo(PPOBench("2link-0.1-1", "stiff", ("mlp",), steps=16, envs=(4,), n_steps=8))
     assert len(rows) == 1 and rows[0]["pushes_per_s"] > 0
     assert rows[0]["pushes"] == 32  # PPO completes its rollout of 4 x 8
+
+
+@pytest.mark.slow
+def test_bench_arm_reports_both_throughputs_and_checks_the_compiled_law():
+    from masspush.reports.bench import ArmBench, bench_arm
+
+    result = bench_arm(ArmBench(episodes=4, check_pushes=2, workers=1))
+    assert result["arm_pushes_per_s"] > 0 and result["stiff_pushes_per_s"] > 0
+    assert result["ratio"] == pytest.approx(
+        result["arm_pushes_per_s"] / result["stiff_pushes_per_s"]
+    )
+    assert result["goal"] == 0.6 and result["meets_goal"] == (result["ratio"] >= 0.6)
+    assert result["identical"] and result["largest_difference"] <= 1e-9
+    assert result["arm_steps_per_push"] > 0 and result["stiff_steps_per_push"] > 0

@@ -117,3 +117,28 @@ def test_diverged_simulation_is_reported_and_state_restored():
     outcome = sim.push(np.array([0.5, 0.0]))
     assert outcome.failure == "nan"
     np.testing.assert_array_equal(sim.config(), before)
+
+
+def test_classify_one_agrees_with_the_batch_classify():
+    from masspush.sim.simulate import classify, classify_one
+
+    chain, physics = chain2()
+    sim = ChainSim(chain, physics)
+    rng = np.random.default_rng(0)
+    base_q, base_v = sim.data.qpos.copy(), sim.data.qvel.copy()
+    seen = set()
+    for _ in range(2000):
+        q, v = base_q.copy(), base_v.copy()
+        v[: sim.layout.nv] = rng.choice([0.0, 1e-4, 9.9e-4, 1e-3, 0.5, 600.0]) * rng.uniform(
+            -1, 1, sim.layout.nv
+        )
+        r = sim.layout.root_qpos
+        q[r + 4 : r + 6] = rng.choice([0.0, 0.03, 0.05, 0.5]) * rng.uniform(-1, 1, 2)
+        q[r + 2] += rng.choice([0.0, 0.1, 0.3, -0.3])
+        if rng.uniform() < 0.05:
+            (q if rng.uniform() < 0.5 else v)[rng.integers(len(v))] = rng.choice([np.nan, np.inf])
+        codes, at_rest = classify(q, v, sim.layout, physics)
+        one = classify_one(q, v, sim.layout, physics)
+        assert one == (int(codes[0]), bool(at_rest[0]))
+        seen.add(one)
+    assert len(seen) >= 4  # every outcome came up: moving, at rest, unstable, nan

@@ -75,6 +75,22 @@ def _bench_pushers(args: argparse.Namespace) -> int:
     return 0
 
 
+def _bench_arm(args: argparse.Namespace) -> int:
+    from masspush.reports.bench import ArmBench, bench_arm
+
+    result = bench_arm(build(ArmBench, args))
+    if not args.json:
+        print(
+            f"{result['arm']}, {result['links']} links: {result['arm_pushes_per_s']:.0f} pushes/s "
+            f"against the stiff pusher's {result['stiff_pushes_per_s']:.0f} (ratio "
+            f"{result['ratio']:.2f}, goal {result['goal']}); steps per push "
+            f"{result['arm_steps_per_push']:.0f} / {result['stiff_steps_per_push']:.0f}; "
+            f"compiled law identical to the reference: {result['identical']}"
+        )
+    print(json.dumps(result))
+    return 0
+
+
 def _bench_data(args: argparse.Namespace) -> int:
     from masspush.reports.bench import DataBench, bench_data
 
@@ -128,6 +144,8 @@ COMMANDS = [
             _bench("SimBench", True, pairs=("mass_range",)), _bench_sim),
     Command("bench pushers", GROUP, "pushes per second of each pusher, and what x10 masses change",
             _bench("PushersBench", True), _bench_pushers),
+    Command("bench arm", GROUP, "an arm's pushes per second against the stiff pusher's",
+            _bench("ArmBench", True), _bench_arm),
     Command("bench data", GROUP, "collection speed, episodes per second", _bench("DataBench"),
             _bench_data),
     Command("bench train", GROUP, "predictor training speed, samples per second",

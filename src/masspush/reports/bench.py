@@ -6,11 +6,12 @@ import os
 import time
 from collections import Counter
 from dataclasses import asdict, dataclass, replace
+from typing import ClassVar
 
 import numpy as np
 from tqdm import tqdm
 
-from masspush.config import PhysicsConfig, check_int
+from masspush.config import MAX_LINKS, PhysicsConfig, check_int
 from masspush.env import ChainEnv
 from masspush.sim.batch import ChainBatch
 from masspush.sim.chain import sample_chain
@@ -87,6 +88,91 @@ class DataBench:
         pusher_kind(self.pusher)
         check_int("episodes", self.episodes)
         check_int("workers", self.workers, optional=True)
+
+
+@dataclass(frozen=True)
+class ArmBench:
+    """`masspush bench arm`: an arm's pushes per second on every core against the stiff
+    pusher's batch path, measured in the same run, and the compiled law against the
+    Python reference."""
+
+    links: int = 2
+    """Links of the chains (masses in [0.1, 1] kg, the KUKA settings')."""
+    arm: str = "kuka"
+    """The arm: kuka or ur10."""
+    episodes: int = 200
+    """Episodes of random pushes for each pusher."""
+    workers: int | None = None
+    """Processes for the arm (default: one per core); the stiff pusher uses as many threads."""
+    check_pushes: int = 20
+    """Pushes simulated with both laws for `identical`."""
+    seed: int = 0
+    """Seed of the chains and pushes."""
+
+    GOALS: ClassVar[dict[int, float]] = {2: 0.6, 3: 0.8}
+    """The ratios issue 27 asks for: arm / stiff throughput."""
+
+    def __post_init__(self) -> None:
+        check_int("links", self.links, 2)
+        if self.links > MAX_LINKS:
+            raise ValueError(f"links must be at most {MAX_LINKS}, got {self.links}")
+        if not pusher_kind(self.arm).arm:
+            raise ValueError(f"arm must be an arm pusher, not {self.arm!r}")
+        check_int("episodes", self.episodes)
+        check_int("workers", self.workers, optional=True)
+        check_int("check_pushes", self.check_pushes)
+        check_int("seed", self.seed, 0)
+
+
+def bench_arm(config: ArmBench = ArmBench()) -> dict:
+    """The arm's and the stiff pusher's throughput (pushes/s) on every core, their ratio,
+    steps per push, and whether the compiled law gives the reference's rest poses."""
+    from masspush.config import EnvConfig
+    from masspush.data.rollout import NOT_RUN, TRAIN, RandomPolicy, run_episodes
+    from masspush.sim.pushers import compiled, make_pusher
+    from masspush.sim.simulate import ChainSim
+
+    physics = PhysicsConfig(n_links=config.links, mass_range=(0.1, 1.0))
+    workers = config.workers or os.cpu_count() or 1
+    rate = {}
+    for name in (config.arm, IDEAL_PUSHER):
+        env_config = EnvConfig(physics=physics, pusher=name)
+        start = time.perf_counter()
+        run = run_episodes(env_config, RandomPolicy(), np.arange(config.episodes), TRAIN,
+                           config.seed, workers)  # fmt: skip
+        rate[name] = int((run.failure != NOT_RUN).sum()) / (time.perf_counter() - start)
+    # The compiled law against the Python reference, and the steps a push takes.
+    rng = np.random.default_rng(config.seed)
+    arms = {True: make_pusher(config.arm), False: make_pusher(config.arm)}
+    arms[False].use_compiled = False
+    worst, steps = 0.0, {config.arm: [], IDEAL_PUSHER: []}
+    for _ in range(config.check_pushes):
+        chain, action = sample_chain(physics, rng), rng.uniform(-1, 1, 2)
+        poses = []
+        for use in (True, False):
+            sim = ChainSim(chain, physics, arms[use])
+            outcome = sim.push(action)
+            poses.append(sim.config())
+        worst = max(worst, float(np.abs(poses[0] - poses[1]).max()))
+        steps[config.arm].append(outcome.steps)
+        steps[IDEAL_PUSHER].append(ChainSim(chain, physics).push(action).steps)
+    ratio = rate[config.arm] / rate[IDEAL_PUSHER]
+    goal = config.GOALS.get(config.links)
+    return {
+        "links": config.links,
+        "arm": config.arm,
+        "compiled": compiled.library() is not None,
+        "workers": workers,
+        "arm_pushes_per_s": rate[config.arm],
+        "stiff_pushes_per_s": rate[IDEAL_PUSHER],
+        "ratio": ratio,
+        "goal": goal,
+        "meets_goal": None if goal is None else bool(ratio >= goal),
+        "arm_steps_per_push": float(np.mean(steps[config.arm])),
+        "stiff_steps_per_push": float(np.mean(steps[IDEAL_PUSHER])),
+        "identical": bool(worst <= 1e-9),
+        "largest_difference": worst,
+    }
 
 
 @dataclass(frozen=True)

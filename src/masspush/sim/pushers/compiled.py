@@ -1,8 +1,8 @@
 """The arm's control loop compiled (osc_law.c), loaded with ctypes; the Python law in
 `masspush.sim.pushers.arm` stays the reference and the fallback.
 
-Where the library comes from: `make` builds it at install (`python -m
-masspush.sim.pushers.compiled`) beside this file; an installation without it builds it on
+Where the library comes from: `make` builds it at install (`compiled.main()`) beside
+this file; an installation without it builds it on
 first use into the user's cache (~/.cache/masspush). Either way it is compiled against the
 headers of the MuJoCo that runs it, and named for that version, so an upgraded MuJoCo gets
 a fresh build. Without a C compiler the arm runs the Python law, 1.6-2.3x slower, and says
@@ -150,9 +150,11 @@ def target(x_des, r_des, v_des, free_axis=None) -> Target:
     return t
 
 
-if __name__ == "__main__":  # `make`: build beside this file
+def main() -> int:
+    """`make`: build the library beside this file; say so where it cannot be built."""
     try:
         print(f"built {build(Path(__file__).parent / '_build')}")
     except (OSError, subprocess.CalledProcessError) as err:
         print(f"the compiled arm law was not built, the arms will run the Python law: "
               f"{getattr(err, 'stderr', '') or err}", file=sys.stderr)  # fmt: skip
+    return 0
