@@ -7,7 +7,7 @@ import pytest
 from masspush.config import PhysicsConfig
 from masspush.sim.chain import link_poses, sample_chain
 from masspush.sim.pushers import make_pusher
-from masspush.sim.pushers.arm import ARMS, ArmPusher, tool_rotation
+from masspush.sim.pushers.arm import ARM_PARK, ARMS, ASSETS, ArmPusher, tool_rotation
 from masspush.sim.pushers.osc import desired_acceleration, osc_torque, rotation_error
 from masspush.sim.simulate import ChainSim
 
@@ -165,3 +165,30 @@ def test_control_law_matches_the_reference_law(arm):
         expected = osc_torque(jac, full_m[np.ix_(h.dadr, h.dadr)], xdd)
         np.testing.assert_allclose(tip_velocity, jac @ data.qvel[h.dadr], rtol=1e-12)
         np.testing.assert_allclose(tau, expected, rtol=1e-7, atol=1e-7 * np.abs(expected).max())
+
+
+@pytest.mark.parametrize("arm", ["kuka", "ur10"])
+def test_scenes_from_the_parsed_arm_are_those_from_its_file(arm):
+    """The arm's file is parsed once per pusher: each later scene compiles to the same
+    bytes as one from a fresh parse."""
+    import mujoco
+
+    from masspush.sim.chain import compile_scene
+
+    physics = PhysicsConfig()
+    chain = sample_chain(physics, np.random.default_rng(0))
+    pusher = make_pusher(arm)
+
+    def saved(model):
+        out = np.zeros(mujoco.mj_sizeModel(model), np.uint8)
+        mujoco.mj_saveModel(model, None, out)
+        return out
+
+    def from_file(spec, physics):  # what add_to did before it kept the parsed file
+        parsed = mujoco.MjSpec.from_file(str(ASSETS / ARMS[arm].xml))
+        frame = spec.worldbody.add_frame(pos=ARM_PARK.tolist())
+        frame.attach_body(parsed.body("base"), f"{arm}/", "")
+
+    first, again = (saved(compile_scene(chain, physics, pusher.add_to)) for _ in range(2))
+    fresh = saved(compile_scene(chain, physics, from_file))
+    assert np.array_equal(first, again) and np.array_equal(again, fresh)
