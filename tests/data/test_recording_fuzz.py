@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,22 +19,11 @@ from masspush.data.recording import (
     read_recording,
 )
 
-HEADER = {
-    "format": "masspush-episodes",
-    "version": 1,
-    "n_links": 2,
-    "units": {"length": "m", "angle": "rad", "mass": "kg"},
-    "robot": "ur10",
-    "setting": "2link-1-10",
-}
-EPISODE = {
-    "id": "a-01",
-    "lengths": [0.1, 0.12],
-    "observations": [[0.0, 0.0, 0.1, 0.2], [0.05, 0.01, 0.3, -0.1], [0.07, 0.02, 0.2, 0.0]],
-    "actions": [[0.5, -0.5], [1.0, 0.5]],
-    "label": "even",
-    "masses": [0.16, 0.16],
-}
+# The generator starts from the documented example (docs/examples/recording.jsonl, itself
+# checked by test_recording.py), its first episode given a label so that every field occurs.
+_EXAMPLE = Path(__file__).parents[2] / "docs" / "examples" / "recording.jsonl"
+HEADER, _FIRST = (json.loads(line) for line in _EXAMPLE.read_text().splitlines()[:2])
+EPISODE = {**_FIRST, "label": "even"}
 
 # Values of the wrong kind for any field: no field of a recording accepts all of these.
 WRONG_KINDS = [None, True, "1", 1e39, -1, [], {}, [[[]]], "\x1b[2J", math.nan]
@@ -81,6 +71,7 @@ def _bad_files() -> list[tuple[str, str]]:
         "observations": [[0.0, 0.0, 0.0, 0.0]] * (MAX_PUSHES + 2),
     }
     good = _lines(HEADER, EPISODE)
+    marked = _lines(HEADER, {**EPISODE, "lengths": [12345.5, *EPISODE["lengths"][1:]]})
     out += [
         ("empty", ""),
         ("blank lines", "\n \n\n"),
@@ -90,8 +81,8 @@ def _bad_files() -> list[tuple[str, str]]:
         ("a list", "[1, 2]\n"),
         ("repeated id", _lines(HEADER, EPISODE, EPISODE)),
         ("unknown field", _lines(HEADER, {**EPISODE, "x": 1})),
-        ("NaN token", good.replace("0.12", "NaN")),
-        ("Infinity token", good.replace("0.12", "-Infinity")),
+        ("NaN token", marked.replace("12345.5", "NaN")),
+        ("Infinity token", marked.replace("12345.5", "-Infinity")),
         ("too many pushes", _lines(HEADER, too_long)),
         ("deep nesting", _lines(HEADER) + "[" * 50_000 + "]" * 50_000 + "\n"),
     ]
