@@ -4,14 +4,16 @@
 Where the library comes from: `make` builds it at install (`compiled.main()`) beside
 this file; an installation without it builds it on
 first use into the user's cache (~/.cache/masspush). Either way it is compiled against the
-headers of the MuJoCo that runs it, and named for that version, so an upgraded MuJoCo gets
-a fresh build. Without a C compiler the arm runs the Python law, 1.6-2.3x slower, and says
-so once. MASSPUSH_PURE_PYTHON=1 asks for the Python law.
+headers of the MuJoCo that runs it, and named for that version and the source's hash, so
+an upgraded MuJoCo or an edited source gets a fresh build. Without a C compiler the arm
+runs the Python law, 2.2x slower, and says so once. MASSPUSH_PURE_PYTHON=1 asks for the
+Python law.
 """
 
 from __future__ import annotations
 
 import ctypes
+import hashlib
 import os
 import shutil
 import subprocess
@@ -26,7 +28,11 @@ import numpy as np
 
 SOURCE = Path(__file__).with_name("osc_law.c")
 MUJOCO_DIR = Path(mujoco.__file__).parent
-LIBRARY = f"osc_law-mujoco{mujoco.__version__}.so"
+# Named for the source and the MuJoCo it was built for: an edited osc_law.c or an upgraded
+# MuJoCo gets a fresh build instead of a stale library.
+LIBRARY = (
+    f"osc_law-{hashlib.sha256(SOURCE.read_bytes()).hexdigest()[:12]}-mujoco{mujoco.__version__}.so"
+)
 PURE_PYTHON = "MASSPUSH_PURE_PYTHON"
 """Set (to anything but 0) to run the arms with the Python law."""
 # -ffp-contract=off: no fused multiply-adds, whose single rounding would make the
@@ -115,7 +121,7 @@ def library() -> ctypes.CDLL | None:
                 reason = getattr(err, "stderr", None) or str(err)
     if path is None:
         warnings.warn(
-            f"the arms run their control law in Python (1.6-2.3x slower): the compiled law "
+            f"the arms run their control law in Python (about 2x slower): the compiled law "
             f"could not be built ({reason.strip().splitlines()[-1] if reason else '?'})",
             RuntimeWarning,
             stacklevel=2,
