@@ -212,25 +212,26 @@ def collect(
         code_version=code_version(),
         created=time.strftime("%Y-%m-%dT%H:%M:%S%z"),
     )
-    if (root / MANIFEST).exists():
-        old = read_manifest(root)
+    old = read_manifest(root) if (root / MANIFEST).exists() else None
+    if old is not None:
         if old.identity() != manifest.identity():
             raise DatasetError(
                 f"{root} holds a different collection ({old.identity()}); "
                 "collect into another directory"
             )
         manifest = _resized(root, old, episodes, resize)
-    if not (root / MANIFEST).exists() or read_manifest(root).episodes != manifest.episodes:
+    if old is None or old.episodes != manifest.episodes:
         _write_json(root / MANIFEST, asdict(manifest))  # unchanged: read-only storage is fine
     todo = [j for j in range(manifest.shards) if not _complete(root, manifest, j)]
-    _check_disk(root, env_config, sum(_shard_len(manifest, j) for j in todo))
+    missing = sum(_shard_len(manifest, j) for j in todo)
+    _check_disk(root, env_config, missing)
     with tqdm(
         total=manifest.episodes,
         desc=f"collecting {setting.name} ({pusher})",
         unit="ep",
         disable=not progress,
     ) as bar:
-        done = manifest.episodes - sum(_shard_len(manifest, j) for j in todo)
+        done = manifest.episodes - missing
         bar.update(done)
         for j in todo:
             lo = j * shard_size

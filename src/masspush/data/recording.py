@@ -154,14 +154,7 @@ def read_recording(path: str | os.PathLike) -> Recording:
     problems = checker.finish()
     if problems:
         raise RecordingError(path, problems)
-    header = checker.header
-    return Recording(
-        n_links=header["n_links"],
-        robot=header.get("robot", ""),
-        setting=header.get("setting"),
-        notes=header.get("notes", ""),
-        episodes=episodes,
-    )
+    return _recording(checker.header, episodes)
 
 
 def iter_recording(path: str | os.PathLike, chunk: int = 4096) -> Iterator[Recording]:
@@ -171,23 +164,27 @@ def iter_recording(path: str | os.PathLike, chunk: int = 4096) -> Iterator[Recor
     checker = _checked(path)
     if checker.finish():
         raise RecordingError(path, checker.problems)
-    header = checker.header
-
-    def piece(episodes: list[dict[str, Any]]) -> Recording:
-        return Recording(n_links=header["n_links"], robot=header.get("robot", ""),
-                         setting=header.get("setting"), notes=header.get("notes", ""),
-                         episodes=episodes)  # fmt: skip
-
     episodes: list[dict[str, Any]] = []
     with open(path, encoding="utf-8") as f:
         for number, line in enumerate(f, 1):
             if number > checker.header_line and line.strip():
                 episodes.append(_compact(json.loads(line)))
                 if len(episodes) == chunk:
-                    yield piece(episodes)
+                    yield _recording(checker.header, episodes)
                     episodes = []
     if episodes:
-        yield piece(episodes)
+        yield _recording(checker.header, episodes)
+
+
+def _recording(header: dict[str, Any], episodes: list[dict[str, Any]]) -> Recording:
+    """A checked file's header and (some of) its episodes as a `Recording`."""
+    return Recording(
+        n_links=header["n_links"],
+        robot=header.get("robot", ""),
+        setting=header.get("setting"),
+        notes=header.get("notes", ""),
+        episodes=episodes,
+    )
 
 
 def problem_count(problems: list[Problem]) -> int:

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from masspush.config import check_input, check_match, check_output
-from masspush.data.recording import iter_recording, read_recording
+from masspush.data.recording import Recording, iter_recording, read_recording
 from masspush.learn.predictor import load_model
 from masspush.models import resolve_model
 from masspush.real.finetune import (
@@ -59,7 +59,9 @@ def finetune(job: FinetuneJob, config: ClassifierConfig) -> list[str]:
         path, setting.name, allow_mismatch=job.allow_mismatch, n_links=setting.n_links
     )
     recording = read_recording(job.episodes)
-    _check_recording_fits(recording, job.episodes, setting.name, setting.n_links, job)
+    _check_recording_fits(
+        recording, job.episodes, setting.name, setting.n_links, job.allow_mismatch
+    )
     episodes = recording.to_episodes()
     if job.predictor_out:
         out = finetune_predictor(path, episodes, job.predictor_out, recording=str(job.episodes))
@@ -81,12 +83,13 @@ def finetune(job: FinetuneJob, config: ClassifierConfig) -> list[str]:
     return [*lines, f"saved {saved} (trained on all)"]
 
 
-def _check_recording_fits(recording, where, setting: str, n_links, job) -> None:
+def _check_recording_fits(
+    recording: Recording, where: str, setting: str, n_links: int, allow_mismatch: bool
+) -> None:
     """A recording read by a predictor of `setting`: of that setting (unless
     --allow-mismatch) and always of its number of links."""
-    if n_links is not None:  # classifiers name their predictor's; a predictor always does
-        check_match("n_links", str(where), recording.n_links, n_links, allowable=False)
-    check_match("setting", str(where), recording.setting, setting, job.allow_mismatch)
+    check_match("n_links", where, recording.n_links, n_links, allowable=False)
+    check_match("setting", where, recording.setting, setting, allow_mismatch)
 
 
 @dataclass(frozen=True)
@@ -109,7 +112,6 @@ def classify(job: ClassifyJob) -> list[str]:
     """Each episode's class and probability, and the accuracy on the labelled ones."""
     model, classes, meta = load_classifier(job.classifier)
     predictor, _ = load_model(meta["predictor"], meta["setting"])
-    n_links = meta.get("predictor_meta", {}).get("setting", {}).get("n_links")
     # Classifiers saved before runs could be read one by one averaged them.
     reading = ClassifierConfig(
         features=meta.get("features", "estimate"),
@@ -120,7 +122,9 @@ def classify(job: ClassifyJob) -> list[str]:
     # Piece by piece: a recording of any size is classified in the memory of one piece.
     for i, piece in enumerate(iter_recording(job.episodes)):
         if i == 0:
-            _check_recording_fits(piece, job.episodes, meta["setting"], n_links, job)
+            _check_recording_fits(
+                piece, job.episodes, meta["setting"], predictor.n_links, job.allow_mismatch
+            )
         features, owner = classifier_inputs(predictor, piece.to_episodes(), reading)
         probs = np.exp(episode_log_probs(model, features, owner, len(piece.episodes)))
         for episode, p in zip(piece.episodes, probs, strict=True):

@@ -282,7 +282,7 @@ class ArmPusher:
     ) -> str | None:  # fmt: skip
         """Steps 3 and 4 of `deliver` in compiled code (`compiled`, osc_law.c): the same law
         and the same steps, without a return to Python between them."""
-        arm = self._compiled_arm(model, h)
+        arm = self._compiled_arm(h)
         ratio = ctypes.c_double(self.trace.max_torque_ratio)
         speeds = np.zeros(deadline + hold + 1)
         contact, steps = ctypes.c_int(), ctypes.c_int()
@@ -302,7 +302,7 @@ class ArmPusher:
         self.trace.max_torque_ratio = ratio.value
         return {0: None, 1: "arm_contact", 2: "unreachable"}[code]
 
-    def _compiled_arm(self, model: mujoco.MjModel, h: _Handles) -> compiled.Arm:
+    def _compiled_arm(self, h: _Handles) -> compiled.Arm:
         if self._compiled is None or self._compiled[0] is not h:
             arm = compiled.Arm()
             arm.dof0 = h.dofs.start

@@ -100,9 +100,13 @@ def build(directory: str | os.PathLike) -> Path:
     return out
 
 
+BUILD_DIR = Path(__file__).parent / "_build"
+"""Where `make` builds the library (an editable install's package directory)."""
+
+
 def _candidates() -> list[Path]:
     cache_dir = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "masspush"
-    return [Path(__file__).parent / "_build", cache_dir]
+    return [BUILD_DIR, cache_dir]
 
 
 @cache
@@ -159,7 +163,7 @@ def target(x_des, r_des, v_des, free_axis=None) -> Target:
 def main() -> int:
     """`make`: build the library beside this file; say so where it cannot be built."""
     try:
-        print(f"built {build(Path(__file__).parent / '_build')}")
+        print(f"built {build(BUILD_DIR)}")
     except (OSError, subprocess.CalledProcessError) as err:
         print(f"the compiled arm law was not built, the arms will run the Python law: "
               f"{getattr(err, 'stderr', '') or err}", file=sys.stderr)  # fmt: skip
