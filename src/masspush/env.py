@@ -84,7 +84,8 @@ class ChainEnv(gym.Env):
     Terminated after `pushes` pushes (default 2 for 2 links, 3 for 3 links), or at once
     when a push fails: `info["failure"]` is then "nan" (the simulation diverged; the state
     is restored to before the push), "unstable" (thrown off the table, absurd speed, or
-    at rest on its side) or "timeout" (still moving after 10 s). Never truncated.
+    at rest on its side), "timeout" (still moving after 10 s), or one of the arms' own
+    (`pusher` below). Never truncated.
 
     ## Info
     `mass_distribution` (masses / total, n floats), `masses`, `friction`, `lengths`,
@@ -98,8 +99,11 @@ class ChainEnv(gym.Env):
     allow_out_of_range=False)`; `physics` is a full `PhysicsConfig` whose n_links and
     mass_range the two arguments override; n_links up to `masspush.config.MAX_LINKS` (64).
     `pusher`: "stiff" (idealised, velocity-controlled), "kuka" or "ur10" (robot arms under
-    the paper's operational-space control; they add the failures "arm_contact" and
-    "unreachable", see docs/arms.md).
+    the paper's operational-space control whose base follows the chain; they add the
+    failures "arm_contact" and "unreachable", see docs/arms.md), or "ur10-stationary" (the
+    UR10 on a fixed base beside the table, as in the paper's real setup, with its joint
+    speed limits; it adds "left_workspace" when the chain comes to rest out of its reach,
+    at reset too; docs/real-robot.md).
 
     ## Version history
     v0: first version.

@@ -6,17 +6,22 @@ from gymnasium.utils.env_checker import check_env
 
 from masspush.config import EnvConfig
 from masspush.data.rollout import TRAIN, run_batch, run_env, run_episodes
+from masspush.learn.features import (
+    LOSS_REWARD,
+    history_dim,
+    history_features,
+    paper_reward,
+    push_reward,
+)
 from masspush.learn.policy import (
     LearnedPolicy,
     PolicyConfig,
     PushPolicyEnv,
-    history_dim,
-    history_features,
-    paper_reward,
     strip_policy,
     train_policy,
 )
 from masspush.settings import get_setting
+from masspush.sim.pushers import pusher_kind
 
 CONFIG = EnvConfig(physics=get_setting("2link-0.1-1").physics(), pusher="stiff")
 
@@ -45,6 +50,49 @@ def test_history_features_hide_the_future():
     np.testing.assert_array_equal(before[:, -2:], np.tile([1.0, 0.0], (4, 1)))  # push number
     after = history_features(obs, actions, lengths, step=1)
     assert not np.array_equal(before, after)
+
+
+def test_a_stationary_robots_policy_sees_where_the_chain_lies_from_it():
+    workspace = pusher_kind("ur10-stationary").workspace
+    obs = np.zeros((2, 3, 4), np.float32)
+    obs[:, :, 1] = [[0.0, 0.1, 0.2], [0.0, -0.1, 0.3]]  # y of the root, push by push
+    actions = np.zeros((2, 2, 2), np.float32)
+    lengths = np.full((2, 2), 0.12, np.float32)
+    plain = history_features(obs, actions, lengths, 1)
+    seen = history_features(obs, actions, lengths, 1, workspace)
+    assert seen.shape == (2, history_dim(2, 2, workspace)) == (2, plain.shape[1] + 4)
+    np.testing.assert_array_equal(seen[:, :-4], plain)  # the relative history is unchanged
+    # The latest pose (after push 1), ahead of the base by 0.7 m + y.
+    np.testing.assert_allclose(seen[:, -4], [0.8, 0.6], atol=1e-6)
+    # Where the chain lies moves only the new inputs: the history is relative to q_0.
+    shifted = obs.copy()
+    shifted[:, :, 0] += 0.05
+    np.testing.assert_array_equal(history_features(shifted, actions, lengths, 1), plain)
+    assert not np.array_equal(history_features(shifted, actions, lengths, 1, workspace), seen)
+
+
+def test_losing_the_chain_costs_more_than_any_estimate_gains():
+    truth = np.array([0.5, 0.5])
+    assert push_reward(truth, truth, None) == 10.0
+    assert push_reward(np.array([1.0, 0.0]), truth, None) == 0.0  # the worst estimate
+    for failure in ("unreachable", "left_workspace"):
+        assert push_reward(None, truth, failure) == LOSS_REWARD == -10.0
+    for failure in ("unstable", "timeout", "arm_contact", "nan"):
+        assert push_reward(None, truth, failure) == 0.0
+
+
+@pytest.mark.slow
+def test_a_policy_environment_for_a_stationary_robot_pays_for_a_lost_chain(predictor_file):
+    config = EnvConfig(physics=get_setting("real-ur10").physics(), pusher="ur10-stationary")
+    env = PushPolicyEnv(config, str(predictor_file))
+    assert env.observation_space.shape == (history_dim(2, 2, env.workspace),)
+    env.reset(seed=0, options=None)
+    # Full speed away from the base on a light chain near the workspace's edge.
+    env.chain_env.reset(options={"masses": [0.02, 0.02], "root_pose": [0.0, 0.2, 0.0],
+                                 "joint_angles": [0.0], "lengths": [0.12, 0.12],
+                                 "friction": 0.5})  # fmt: skip
+    _, reward, done, _, info = env.step(np.array([1.0, -0.5], np.float32))
+    assert done and info["failure"] == "left_workspace" and reward == LOSS_REWARD
 
 
 @pytest.mark.slow

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from masspush.config import EnvConfig
-from masspush.learn.policy import history_dim, paper_reward
+from masspush.learn.features import history_dim, paper_reward
 from masspush.learn.vec_env import BatchPushVecEnv
 from masspush.settings import get_setting
 

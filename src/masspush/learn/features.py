@@ -10,6 +10,7 @@ import numpy as np
 
 from masspush.data.rollout import Episodes
 from masspush.learn.predictor import step_inputs
+from masspush.sim.workspace import ROBOT_FRAME_DIM, Workspace
 
 REWARD_SCALE, REWARD_BETA = 10.0, 2.0
 """The reward as coded: REWARD_SCALE * (1 - REWARD_BETA * mean_i |m_i - m_hat_i|) [code]."""
@@ -21,17 +22,43 @@ def paper_reward(predicted: np.ndarray, truth: np.ndarray) -> np.ndarray:
     return REWARD_SCALE * (1.0 - REWARD_BETA * error)
 
 
-def history_dim(n_links: int, pushes: int) -> int:
+LOSS_REWARD = -REWARD_SCALE
+"""The reward of a push after which a stationary robot has lost the chain (it could not
+reach the push, or the chain came to rest out of its reach; `REACH_FAILURES`) [ours]: as
+far below a perfect estimate's reward as a perfect estimate is above zero, on top of the
+rewards of the pushes the episode no longer has, so that no estimate's gain pays for a
+throw out of reach (docs/real-robot.md)."""
+REACH_FAILURES = ("unreachable", "left_workspace")
+
+
+def push_reward(predicted: np.ndarray, truth: np.ndarray, failure: str | None) -> float:
+    """One push's reward: the paper's for a push that succeeded, `LOSS_REWARD` for one that
+    lost the chain to a stationary robot, 0 for another failure (the chain's own)."""
+    if failure is None:
+        return float(paper_reward(predicted, truth))
+    return LOSS_REWARD if failure in REACH_FAILURES else 0.0
+
+
+def history_dim(n_links: int, pushes: int, workspace: Workspace | None = None) -> int:
     """Length of the policy's observation vector."""
     step = 2 + 3 + 2 * (n_links - 1) + n_links
-    return (n_links - 1 + n_links) + pushes * step + pushes
+    where = 0 if workspace is None else ROBOT_FRAME_DIM
+    return (n_links - 1 + n_links) + pushes * step + pushes + where
 
 
 def history_features(
-    observations: np.ndarray, actions: np.ndarray, lengths: np.ndarray, step: int
+    observations: np.ndarray,
+    actions: np.ndarray,
+    lengths: np.ndarray,
+    step: int,
+    workspace: Workspace | None = None,
 ) -> np.ndarray:
     """(E, history_dim) policy inputs before push `step`, from (E, K + 1, D) observations
-    (q_0..q_step filled), (E, K, 2) actions (a_0..a_{step-1} filled) and (E, n) lengths."""
+    (q_0..q_step filled), (E, K, 2) actions (a_0..a_{step-1} filled) and (E, n) lengths.
+
+    The history is relative to the first pose (where the chain lies does not change how
+    it moves); for a stationary robot (`workspace`) the latest pose in the robot's frame
+    follows, so that the policy knows where the chain lies from the robot."""
     e, k = actions.shape[:2]
     known_obs = np.full_like(observations, np.nan)
     known_obs[:, : step + 1] = observations[:, : step + 1]
@@ -42,4 +69,7 @@ def history_features(
     onehot = np.zeros((e, k), np.float32)
     if step < k:
         onehot[:, step] = 1.0
-    return np.concatenate([q0, steps.reshape(e, -1), onehot], axis=1).astype(np.float32)
+    parts = [q0, steps.reshape(e, -1), onehot]
+    if workspace is not None:
+        parts.append(np.nan_to_num(workspace.robot_frame(observations[:, step, :3])))
+    return np.concatenate(parts, axis=1).astype(np.float32)

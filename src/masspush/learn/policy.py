@@ -28,7 +28,7 @@ import numpy as np
 
 from masspush.config import EnvConfig
 from masspush.data.rollout import POLICIES, Episodes, Policy
-from masspush.learn.features import history_dim, history_features, paper_reward
+from masspush.learn.features import history_dim, history_features, push_reward
 from masspush.learn.vec_env import BatchPushVecEnv
 from masspush.sim.pushers import pusher_kind
 
@@ -84,7 +84,8 @@ class PushPolicyEnv(gym.Env):
         self.chain_env = ChainEnv.from_config(env_config) if chain_env is None else chain_env()
         self.predictor, _ = load_model(predictor_path)
         self.k, self.n, self.d = env_config.pushes, physics.n_links, physics.obs_dim
-        dim = history_dim(self.n, self.k)
+        self.workspace = pusher_kind(env_config.pusher).workspace
+        dim = history_dim(self.n, self.k, self.workspace)
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (dim,), np.float32)
         self.action_space = self.chain_env.action_space
 
@@ -110,17 +111,17 @@ class PushPolicyEnv(gym.Env):
         self._actions[0, self._t] = action
         if info["failure"] is not None:
             self._t += 1
-            return self._features(), 0.0, True, False, info
+            return self._features(), push_reward(None, None, info["failure"]), True, False, info
         self._obs[0, self._t + 1] = obs[: self.d]
         self._t += 1
         history = Episodes.history(self._obs, np.nan_to_num(self._actions), self._lengths)
         estimate = self.predictor.predict(history)[0, self._t - 1]
-        reward = float(paper_reward(estimate, self._truth))
+        reward = push_reward(estimate, self._truth, None)
         info["estimate"] = estimate
         return self._features(), reward, bool(terminated), False, info
 
     def _features(self) -> np.ndarray:
-        return history_features(self._obs, self._actions, self._lengths, self._t)[0]
+        return history_features(self._obs, self._actions, self._lengths, self._t, self.workspace)[0]
 
 
 @dataclass(frozen=True)
@@ -398,8 +399,14 @@ class LearnedPolicy:
     Deterministic (the policy's mean action, as the paper evaluated) or stochastic; a
     stochastic policy draws from torch seeded by the episodes' seeds, so runs repeat."""
 
-    def __init__(self, path: str | os.PathLike, algo: str, deterministic: bool = True):
+    def __init__(
+        self, path: str | os.PathLike, algo: str, deterministic: bool = True,
+        pusher: str | None = None,
+    ):  # fmt: skip
+        """`pusher`: the pusher it was trained with (a stationary robot's policy also sees
+        where the chain lies from the robot; `history_features`)."""
         self.path, self.algo, self.deterministic = str(path), algo, deterministic
+        self.workspace = None if pusher is None else pusher_kind(pusher).workspace
         self.name = f"learned:{Path(path).name}"
         self._model = None
 
@@ -426,7 +433,13 @@ class LearnedPolicy:
     def act(
         self, observations: np.ndarray, actions: np.ndarray, step: int, lengths: np.ndarray
     ) -> np.ndarray:
-        features = history_features(observations, actions, lengths, step)
+        features = history_features(observations, actions, lengths, step, self.workspace)
+        expected = self._model.observation_space.shape[0]
+        if features.shape[1] != expected:
+            raise ValueError(
+                f"{self.path} takes {expected} inputs, the history gives {features.shape[1]}: "
+                "a policy trained for another pusher or number of pushes"
+            )
         action, self._state = self._model.predict(
             features,
             state=self._state,
@@ -445,7 +458,9 @@ def model_policy(meta: dict[str, Any], model_file: str | os.PathLike) -> Policy:
         policy_file = Path(model_file).parent / meta["policy_file"]
         if not policy_file.exists():
             raise ValueError(f"{model_file} needs its policy file {policy_file}, which is missing")
-        return LearnedPolicy(policy_file, meta["policy_algo"], deterministic=True)
+        return LearnedPolicy(
+            policy_file, meta["policy_algo"], deterministic=True, pusher=meta.get("pusher")
+        )
     if name not in POLICIES:
         raise ValueError(f"{model_file} names an unknown policy {name!r}")
     return POLICIES[name]()

@@ -187,7 +187,7 @@ class Recipe:
         return state
 
     def _learned(self, i: int, deterministic: bool = True) -> LearnedPolicy:
-        return LearnedPolicy(self.policy(i), self.config.policy.algo, deterministic)
+        return LearnedPolicy(self.policy(i), self.config.policy.algo, deterministic, self.pusher)
 
     def _collect(self, name: str, episodes: int, policy, stream: int) -> None:
         collect(

@@ -1,6 +1,7 @@
 """The simulation: chains on a table (`chain`), actions to pushes (`actions`), one chain
-pushed to rest (`simulate`) or many in lockstep (`batch`), the pushers (`pushers`), and how
-trustworthy a simulated rest pose is (`convergence`). No learning, no torch.
+pushed to rest (`simulate`) or many in lockstep (`batch`), the pushers (`pushers`), where a
+stationary robot reaches (`workspace`), and how trustworthy a simulated rest pose is
+(`convergence`). No learning, no torch.
 
 The names below are its public API (what experiments/ may import)."""
 
@@ -14,6 +15,7 @@ EXPORTS = {
     "pushers": ("PUSHERS", "PUSHER_KINDS", "ArmPusher", "StiffPusher", "make_pusher",
                 "pusher_kind"),
     "convergence": ("format_table", "validate_physics"),
+    "workspace": ("Workspace",),
 }  # fmt: skip
 __getattr__ = lazy(__name__, EXPORTS)
 __all__ = names(EXPORTS)

@@ -18,10 +18,12 @@ from masspush.sim.actions import PushSpec, action_to_push, push_geometry
 from masspush.sim.chain import INITIAL_KEY, ChainLayout, ChainParams, compile_scene
 from masspush.sim.pushers import Pusher, StepHook, StiffPusher
 
-FAILURES = ("nan", "unstable", "timeout", "arm_contact", "unreachable")
+FAILURES = ("nan", "unstable", "timeout", "arm_contact", "unreachable", "left_workspace")
 """Why a push can fail: the simulation diverged (NaN/inf); the chain flew off the table,
 reached an absurd speed or came to rest tipped on its side; it still moved at the cap; an
-arm part other than the end-effector touched the chain; the arm could not reach the push."""
+arm part other than the end-effector touched the chain; the arm could not reach the push;
+the chain came to rest outside a stationary robot's workspace, where its next push could
+not be made (`masspush.sim.workspace`). New reasons go at the end: datasets store the index."""
 
 # Codes of `classify`, vectorised over many simulations.
 OK, NAN, UNSTABLE = 0, 1, 2
@@ -127,6 +129,8 @@ class ChainSim:
         # The chain is built resting exactly on the table; let the soft contacts take
         # its weight so that even q_0 is a true rest pose.
         self.initial_failure, _ = self.settle()
+        if self.initial_failure is None:
+            self.initial_failure = self.reach_failure()
 
     def config(self) -> np.ndarray:
         """The chain's current configuration (x, y, yaw, joint angles), noiseless."""
@@ -150,6 +154,8 @@ class ChainSim:
         settle_steps = 0
         if failure is None and settle:
             failure, settle_steps = self.settle()
+            if failure is None:
+                failure = self.reach_failure()
         if failure == "nan":
             self._restore(saved)
         return PushOutcome(
@@ -158,6 +164,15 @@ class ChainSim:
             settle_time=settle_steps * self.physics.timestep,
             steps=push_steps + settle_steps,
         )
+
+    def reach_failure(self) -> str | None:
+        """'left_workspace' where a stationary robot could not make the next push on the
+        chain as it lies now; None otherwise (and always for a pusher that follows)."""
+        workspace = self.pusher.workspace
+        if workspace is None:
+            return None
+        inside = workspace.holds(self.config(), self.chain.lengths, self.physics.joint_gap)
+        return None if inside else "left_workspace"
 
     def settle(self) -> tuple[str | None, int]:
         """Step until the chain is at rest or fails: (failure or None, steps taken)."""

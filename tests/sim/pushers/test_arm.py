@@ -1,4 +1,5 @@
 import math
+from dataclasses import replace
 
 import mujoco
 import numpy as np
@@ -192,3 +193,80 @@ def test_scenes_from_the_parsed_arm_are_those_from_its_file(arm):
     first, again = (saved(compile_scene(chain, physics, pusher.add_to)) for _ in range(2))
     fresh = saved(compile_scene(chain, physics, from_file))
     assert np.array_equal(first, again) and np.array_equal(again, fresh)
+
+
+# --- the stationary UR10 -----------------------------------------------------------------
+
+
+def stationary_sim(root, masses=(0.05, 0.05), pusher=None):
+    physics = PhysicsConfig(n_links=2, mass_range=(0.01, 0.3))
+    options = {**STRAIGHT, "masses": list(masses), "friction": 0.5, "root_pose": list(root)}
+    chain = sample_chain(physics, np.random.default_rng(0), options)
+    return ChainSim(chain, physics, pusher or make_pusher("ur10-stationary"))
+
+
+def test_the_stationary_base_stands_where_its_workspace_says_during_a_push():
+    sim = stationary_sim((0.1, 0.0, 0.4))
+    base = sim.pusher.workspace.base
+    seen = []
+    sim.on_step = lambda: seen.append(sim.data.mocap_pos[sim.pusher._h(sim.model).mocap].copy())
+    outcome = sim.push(np.array([0.3, -0.4]))
+    assert outcome.failure is None
+    pushing = np.array(seen[: outcome.steps - round(outcome.settle_time / sim.physics.timestep)])
+    assert len(pushing) > 10
+    np.testing.assert_allclose(pushing[:, :2], np.tile(base[:2], (len(pushing), 1)))
+
+
+def test_a_chain_thrown_out_of_reach_ends_the_episode():
+    sim = stationary_sim((0.0, 0.2, 0.0), masses=(0.02, 0.02))
+    assert sim.initial_failure is None
+    # Full speed on a light chain near the edge, away from the robot.
+    assert sim.push(np.array([1.0, -0.5])).failure == "left_workspace"
+    assert not sim.pusher.workspace.holds(sim.config(), sim.chain.lengths, sim.physics.joint_gap)
+
+
+def test_a_chain_out_of_reach_from_the_start_is_a_failed_episode():
+    assert stationary_sim((0.0, 0.4, 0.0)).initial_failure == "left_workspace"
+    assert stationary_sim((0.0, 0.0, 0.0)).initial_failure is None
+
+
+def test_a_push_beyond_the_arm_is_unreachable():
+    pusher = make_pusher("ur10-stationary")
+    pusher.workspace = replace(pusher.workspace, r_max=2.5)  # let the chain lie out of reach
+    sim = stationary_sim((0.0, 1.0, 0.0), pusher=pusher)
+    assert sim.initial_failure is None
+    assert sim.push(np.array([0.5, 0.0])).failure == "unreachable"
+
+
+def test_a_stationary_push_does_not_depend_on_the_pushes_before():
+    # The inverse kinematics starts from its cell's solution, whatever was solved before.
+    fresh = stationary_sim((0.05, 0.05, 1.0))
+    fresh.push(np.array([-0.3, 0.6]))
+    used = make_pusher("ur10-stationary")
+    for root, action in (((0.0, -0.1, 2.0), [0.4, 0.2]), ((-0.1, 0.1, -1.0), [-0.6, -0.8])):
+        stationary_sim(root, pusher=used).push(np.array(action))
+    again = stationary_sim((0.05, 0.05, 1.0), pusher=used)
+    again.push(np.array([-0.3, 0.6]))
+    np.testing.assert_array_equal(again.config(), fresh.config())
+
+
+def test_joint_speed_limits_scale_a_push_down_as_a_controller_would():
+    sim = stationary_sim((0.0, 0.0, 0.3))
+    pusher = sim.pusher
+    joints = []
+    sim.on_step = lambda: joints.append(sim.data.qvel[pusher._h(sim.model).dadr].copy())
+    outcome = sim.push(np.array([1.0, 0.3]))
+    assert outcome.failure is None
+    assert 0.3 < pusher.trace.commanded_speed < outcome.push.speed == 5.0
+    # The tip follows the scaled speed, and no joint turns much faster than its limit.
+    contact = pusher.trace.tip_speed[pusher.trace.contact_step]
+    assert contact == pytest.approx(pusher.trace.commanded_speed, rel=0.1)
+    limit = np.array(pusher.arm.joint_speed_limit)
+    assert np.max(np.abs(np.array(joints)) / limit) < 1.05
+
+
+@pytest.mark.parametrize("arm", ["kuka", "ur10"])
+def test_arms_that_follow_the_chain_have_no_joint_speed_limit(arm):
+    sim = sim_with(arm)
+    outcome = sim.push(np.array([0.4, -0.5]))
+    assert sim.pusher.trace.commanded_speed == outcome.push.speed

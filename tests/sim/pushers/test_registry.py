@@ -12,10 +12,13 @@ from masspush.sim.pushers import (
 
 
 def test_each_pusher_states_what_it_can_do():
-    assert PUSHERS == ("stiff", "kuka", "ur10")
+    assert PUSHERS == ("stiff", "kuka", "ur10", "ur10-stationary")
     assert pusher_kind(IDEAL_PUSHER).batch and not pusher_kind(IDEAL_PUSHER).arm
-    for name in ("kuka", "ur10"):
+    for name in ("kuka", "ur10", "ur10-stationary"):
         assert pusher_kind(name).arm and not pusher_kind(name).batch
+    # Only the stationary robot has a workspace, and its pusher carries the same one.
+    assert [n for n, k in PUSHER_KINDS.items() if k.workspace] == ["ur10-stationary"]
+    assert make_pusher("ur10-stationary").workspace == pusher_kind("ur10-stationary").workspace
     assert all(kind.name == name for name, kind in PUSHER_KINDS.items())
 
 

@@ -6,7 +6,7 @@ arm scene). A new pusher is a module beside these and one entry in `PUSHER_KINDS
 
 from __future__ import annotations
 
-from masspush.sim.pushers.arm import ArmPusher
+from masspush.sim.pushers.arm import ARMS, ArmPusher
 from masspush.sim.pushers.base import Pusher, PusherKind, StepHook
 from masspush.sim.pushers.stiff import StiffPusher, park
 
@@ -26,6 +26,15 @@ PUSHER_KINDS: dict[str, PusherKind] = {
         ),
         PusherKind(
             "ur10", "UR10", lambda: ArmPusher("ur10"), batch=False, arm=True, camera_distance=2.2
+        ),
+        PusherKind(
+            "ur10-stationary",
+            "UR10, stationary",
+            lambda: ArmPusher("ur10-stationary"),
+            batch=False,
+            arm=True,
+            camera_distance=2.2,
+            workspace=ARMS["ur10-stationary"].workspace,
         ),
     )
 }

@@ -30,6 +30,7 @@ import numpy as np
 import masspush.sim.pushers.compiled as compiled
 from masspush.config import PhysicsConfig
 from masspush.sim.actions import PushGeometry
+from masspush.sim.chain import wrap_angle
 from masspush.sim.pushers.base import StepHook
 from masspush.sim.pushers.osc import (
     KD,
@@ -39,6 +40,7 @@ from masspush.sim.pushers.osc import (
     rotation_error,
     scale_to_limits,
 )
+from masspush.sim.workspace import Workspace
 
 ASSETS = Path(__file__).parent / "assets"
 ARM_PARK = np.array([-1000.0, -1000.0, 0.0])
@@ -66,7 +68,17 @@ class ArmSpec:
     """How far the tip site's x-axis points below horizontal while pushing, rad. The KUKA's
     tool points 75 degrees down so that its wrist stays well above a 3 cm chain (a ball
     touches the same point at any tool angle); the UR10's dowel tilt is in its model."""
+    workspace: Workspace | None = None
+    """A stationary base: where it stands and what it reaches. None: the base follows the
+    chain, placed `base_distance` behind each contact point."""
+    joint_speed_limit: tuple[float, ...] | None = None
+    """Each joint's top speed, rad/s: a push's speed is scaled down so that no joint must
+    turn faster (a robot controller does the same); None: torque limits only."""
 
+
+UR10_JOINT_SPEED = tuple(math.radians(v) for v in (120, 120, 180, 180, 180, 180))
+"""The UR10's joint speed limits: base and shoulder 120 deg/s, elbow and wrists 180 deg/s
+[UR10 (CB3) technical specifications]."""
 
 # Base distances and pitches found by a reachability scan of the models (docs/arms.md):
 # the KR 5's elbow (A3, +165 degrees) cannot fold far enough to push closer than ~0.55 m
@@ -80,7 +92,24 @@ ARMS = {
         tool_pitch=math.radians(75),
     ),
     "ur10": ArmSpec("ur10", "ur10.xml", base_distance=0.75, max_standoff=0.15, tool_pitch=0.0),
+    "ur10-stationary": ArmSpec(
+        "ur10-stationary",
+        "ur10.xml",
+        base_distance=0.75,
+        max_standoff=0.15,
+        tool_pitch=0.0,
+        workspace=Workspace(base=(0.0, -0.7, math.pi / 2), r_min=0.4, r_max=1.0, max_bearing=1.2),
+        joint_speed_limit=UR10_JOINT_SPEED,
+    ),
 }
+HOLD_TRAVEL = 0.02
+"""How far past the face a push's tip is taken to travel during the hold, m (for the joint
+speed limits) [ours: 10 ms at 2 m/s]."""
+IK_TOLERANCE = 2e-3
+"""Largest inverse-kinematics error (m, plus 0.1 m per rad) of a reachable pose [ours]."""
+IK_CELL_DISTANCE, IK_CELL_ANGLE = 0.05, math.radians(15)
+"""A stationary arm's inverse-kinematics cells: m from the base's axis, rad of push direction
+relative to the bearing (`ArmPusher._ik_stationary`) [ours]."""
 MIN_LINK_HEIGHT = 0.06
 """Inverse kinematics prefers poses whose arm links all stay this far above the table, m."""
 
@@ -97,6 +126,9 @@ class PushTrace:
     """Largest |joint torque| / torque limit seen (1.0 means a limit was reached)."""
     ik_error: float = 0.0
     """Tip position error of the inverse kinematics at the start, m."""
+    commanded_speed: float = 0.0
+    """The tip speed the law was given, m/s: the push's, or less where joint speed limits
+    scale it down (`ArmSpec.joint_speed_limit`)."""
 
 
 @dataclass(frozen=True)
@@ -145,6 +177,9 @@ class ArmPusher:
         self.use_compiled = True
         """Run the control loop compiled where the library is there (`compiled`); False:
         the Python law, the reference."""
+        self.workspace = self.arm.workspace
+        """Where a stationary base stands and what it reaches; None: the base follows."""
+        self._stationary_seeds: dict[tuple[int, int], np.ndarray] = {}
 
     # --- scene ------------------------------------------------------------------------
     def add_to(self, spec: mujoco.MjSpec, physics: PhysicsConfig) -> None:
@@ -219,13 +254,18 @@ class ArmPusher:
         run_up = min(push.speed * STANDOFF_TIME, self.arm.max_standoff)
         standoff = touch - direction * run_up
 
-        # 1. Base next to the link, facing the push direction, on the table.
-        yaw = math.atan2(direction[1], direction[0])
-        self.place_base(model, data, contact - direction * self.arm.base_distance, yaw)
-        # 2. Tip at the standoff point, at rest.
-        q, error = self._ik(model, data, h, standoff, target_r, touch - 0.03 * direction)
+        # 1. Base next to the link, facing the push direction, on the table (or where the
+        # stationary robot stands).
+        if self.workspace is None:
+            yaw = math.atan2(direction[1], direction[0])
+            self.place_base(model, data, contact - direction * self.arm.base_distance, yaw)
+            # 2. Tip at the standoff point, at rest.
+            q, error = self._ik(model, data, h, standoff, target_r, touch - 0.03 * direction)
+        else:
+            self.place_base(model, data, self.workspace.base[:2], self.workspace.base[2])
+            q, error = self._ik_stationary(model, data, h, standoff, target_r, touch, direction)
         self.trace.ik_error = error
-        if error > 2e-3:
+        if error > IK_TOLERANCE:
             self.park(model, data)
             return "unreachable"
         data.qpos[h.qadr] = q
@@ -235,9 +275,20 @@ class ArmPusher:
         dt = model.opt.timestep
         hold = physics.push_steps[1]
         # A torque-limited arm may be slower than commanded: allow it twice the time.
+        speed = push.speed
+        if self.arm.joint_speed_limit is not None:
+            # Where the run-up starts, and where the hold ends (a push moves the tip ~1 cm
+            # past the face): the joint rates a tip speed needs change along the way.
+            end = touch + HOLD_TRAVEL * direction
+            q_end, _, _ = self._solve_ik(model, data, h, end, target_r, q, 50)
+            speed = min(
+                self._speed_within_joint_limits(model, data, h, qq, direction, speed)
+                for qq in (q, q_end)
+            )
+        self.trace.commanded_speed = speed
         to_face = run_up + physics.pusher_clearance
-        deadline = math.ceil((2 * to_face / push.speed + 0.05) / dt)
-        velocity = np.concatenate([direction * push.speed, np.zeros(3)])
+        deadline = math.ceil((2 * to_face / speed + 0.05) / dt)
+        velocity = np.concatenate([direction * speed, np.zeros(3)])
         lib = compiled.library() if self.use_compiled and on_step is None else None
         if lib is not None:
             failure = self._deliver_compiled(
@@ -275,6 +326,24 @@ class ArmPusher:
         # 5. Out of the way.
         self.park(model, data)
         return failure
+
+    def _speed_within_joint_limits(
+        self, model, data, h: _Handles, q: np.ndarray, direction: np.ndarray, speed: float
+    ) -> float:
+        """The push speed scaled down, as a robot controller scales a tool motion, so that
+        no joint would turn faster than its limit to move the tip at it in pose `q`."""
+        saved = data.qpos[h.qadr].copy()
+        data.qpos[h.qadr] = q
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        joint_rates = np.linalg.solve(
+            self._jacobian(model, data, h), np.concatenate([direction * speed, np.zeros(3)])
+        )
+        data.qpos[h.qadr] = saved
+        mujoco.mj_kinematics(model, data)
+        mujoco.mj_comPos(model, data)
+        limit = np.asarray(self.arm.joint_speed_limit)
+        return speed * min(1.0, float(np.min(limit / np.maximum(np.abs(joint_rates), 1e-12))))
 
     def _deliver_compiled(
         self, lib, model, data, h: _Handles, standoff, target_r, velocity, direction,
@@ -455,13 +524,58 @@ class ArmPusher:
         if self._reference_q is None:
             # Every push asks for nearly the same pose relative to the base, so one careful
             # solution from several seeds, elbow above the table, starts all later ones.
-            seeds = [np.zeros(6), *np.random.default_rng(0).uniform(h.low / 2, h.high / 2, (24, 6))]
-            solutions = [
-                self._solve_ik(model, data, h, reference_target, target_r, s, 200) for s in seeds
-            ]
-            self._reference_q = min(solutions, key=lambda r: r[1] + (r[2] < MIN_LINK_HEIGHT))[0]
+            self._reference_q = self._careful_ik(model, data, h, reference_target, target_r)
         q, error, _ = self._solve_ik(model, data, h, target, target_r, self._reference_q, 150)
         return q, error
+
+    def _ik_stationary(
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        h: _Handles,
+        target: np.ndarray,
+        target_r: np.ndarray,
+        touch: np.ndarray,
+        direction: np.ndarray,
+    ) -> tuple[np.ndarray, float]:
+        """`_ik` for a base that stands still: the poses asked for vary with where the chain
+        lies. The base's first joint turns about its vertical axis, so a push rotated about
+        that axis is solved by the same joints with the first one turned by the rotation:
+        pushes are sorted into cells of (distance from the axis, push direction relative
+        to the bearing), each cell's pose at bearing 0 solved carefully once from several
+        seeds, and a push starts from its cell's solution, turned to its bearing. Each
+        push's joints are thus a function of the push alone, whatever came before."""
+        assert self.workspace is not None
+        bx, by, byaw = self.workspace.base
+        rel = touch[:2] - np.array([bx, by])
+        r = float(np.hypot(*rel))
+        bearing = math.atan2(rel[1], rel[0])
+        psi = float(wrap_angle(math.atan2(direction[1], direction[0]) - bearing))
+        cell = (round(r / IK_CELL_DISTANCE), round(psi / IK_CELL_ANGLE))
+        seed = self._stationary_seeds.get(cell)
+        if seed is None:
+            r_c, psi_c = cell[0] * IK_CELL_DISTANCE, cell[1] * IK_CELL_ANGLE
+            axis = np.array([math.cos(byaw), math.sin(byaw), 0.0])
+            d_c = np.array([math.cos(byaw + psi_c), math.sin(byaw + psi_c), 0.0])
+            point = np.array([bx, by, touch[2]]) + r_c * axis - 0.03 * d_c
+            rot = tool_rotation(d_c, self.arm.tool_pitch)
+            seed = self._stationary_seeds[cell] = self._careful_ik(model, data, h, point, rot)
+        start = seed.copy()
+        start[0] += float(wrap_angle(bearing - byaw))
+        start = np.clip(start, h.low, h.high)
+        q, error, _ = self._solve_ik(model, data, h, target, target_r, start, 150)
+        if error > IK_TOLERANCE:
+            # The cell's solution lies on another branch for this push: solve it afresh.
+            q = self._careful_ik(model, data, h, target, target_r)
+            q, error, _ = self._solve_ik(model, data, h, target, target_r, q, 150)
+        return q, error
+
+    def _careful_ik(self, model, data, h, target, target_r) -> np.ndarray:
+        """The best of solutions from 25 seeds (zero and random, fixed), preferring those
+        whose arm links stay `MIN_LINK_HEIGHT` above the table."""
+        seeds = [np.zeros(6), *np.random.default_rng(0).uniform(h.low / 2, h.high / 2, (24, 6))]
+        solutions = [self._solve_ik(model, data, h, target, target_r, s, 200) for s in seeds]
+        return min(solutions, key=lambda r: r[1] + (r[2] < MIN_LINK_HEIGHT))[0]
 
     def _solve_ik(self, model, data, h, target, target_r, q0, iterations):
         """Damped least squares with steps of at most 0.2 rad: (q, error, lowest link height)."""

@@ -16,6 +16,7 @@ import mujoco
 
 from masspush.config import PhysicsConfig
 from masspush.sim.actions import PushGeometry
+from masspush.sim.workspace import Workspace
 
 StepHook = Callable[[], None]
 
@@ -24,6 +25,9 @@ class Pusher(Protocol):
     """Delivers pushes in a MuJoCo scene that also holds the chain."""
 
     name: str
+    workspace: Workspace | None
+    """A stationary robot's reach (`masspush.sim.workspace`); None: it reaches the chain
+    wherever it lies."""
 
     def add_to(self, spec: mujoco.MjSpec, physics: PhysicsConfig) -> None:
         """Add the pusher's bodies, joints and actuators to a scene being built."""
@@ -59,3 +63,5 @@ class PusherKind:
     matters, as on a real robot). The stiff pusher is not one: a chain's mass barely slows it."""
     camera_distance: float
     """How far back a rendering camera stands to see the pusher and the chain, m [ours]."""
+    workspace: Workspace | None = None
+    """A stationary robot's reach; None: the pusher reaches the chain wherever it lies."""

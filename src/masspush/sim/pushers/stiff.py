@@ -33,6 +33,7 @@ class StiffPusher:
     """
 
     name = "stiff"
+    workspace = None  # the idealised pusher reaches the chain wherever it lies
 
     def add_to(self, spec: mujoco.MjSpec, physics: PhysicsConfig) -> None:
         body = spec.worldbody.add_body(
