@@ -109,7 +109,7 @@ def target_episodes(design: str, predictor, per_class: int):
 
     policy = make_policy(design) or model_and_policy("tp+", SETTING)[2]
     config = Sim2RealConfig(setting=SETTING, episodes_per_class=per_class)
-    recording, _ = record_classes(config, predictor, policy, "probe", progress=False)
+    recording, _, _ = record_classes(config, predictor, policy, "probe", progress=False)
     labels = np.array([list(PAPER_CLASSES).index(label) for label in recording.labels])
     return recording.to_episodes(), labels
 

@@ -90,7 +90,8 @@ class ChainEnv(gym.Env):
     ## Info
     `mass_distribution` (masses / total, n floats), `masses`, `friction`, `lengths`,
     `config` (the noiseless configuration), `failure` (None or a reason), `pushes_done`;
-    after a step also `push` (link, offset, side, speed, the executed action) and
+    after a step also `push` (link, offset, side, speed, the executed action, the speed
+    the pusher reached: `executed_speed`, below `speed` where an arm could not reach it) and
     `settle_time` (simulated seconds until rest).
 
     ## Arguments
@@ -204,4 +205,9 @@ class ChainEnv(gym.Env):
 
 
 def _push_info(outcome: PushOutcome, executed: np.ndarray) -> dict[str, Any]:
-    return {**asdict(outcome.push), "action": executed.copy(), "steps": outcome.steps}
+    return {
+        **asdict(outcome.push),
+        "action": executed.copy(),
+        "steps": outcome.steps,
+        "executed_speed": outcome.executed_speed,
+    }

@@ -25,10 +25,12 @@ EPISODE = {
     "actions": [[0.5, -0.5], [1.0, 0.5]],
     "label": "even",
     "masses": [0.16, 0.16],
+    "speeds": [2.5, 4.2],
+    "failure": "left_workspace",
 }
 
 
-NUMBERS = ("lengths", "observations", "actions", "masses")
+NUMBERS = ("lengths", "observations", "actions", "masses", "speeds")
 
 
 def write_lines(tmp_path, *objects) -> str:
@@ -40,7 +42,7 @@ def write_lines(tmp_path, *objects) -> str:
 def test_a_recording_round_trips_and_becomes_predictor_input(tmp_path):
     short = {**EPISODE, "id": "b", "observations": EPISODE["observations"][:2]}
     short["actions"] = EPISODE["actions"][:1]
-    del short["label"], short["masses"]
+    del short["label"], short["masses"], short["speeds"], short["failure"]
     recording = Recording(n_links=2, robot="ur10", setting="2link-0.1-1", episodes=[EPISODE, short])
     path = write_recording(tmp_path / "r.jsonl", recording)
     back = read_recording(path)
@@ -95,6 +97,11 @@ def test_header_problems_name_line_and_field(tmp_path, change, line, field, mess
         ({"observations": [[0.0, 0.0, 0.1, 1e300]] * 3}, "observations[0][3]", "in float32"),
         ({"masses": None}, "masses", "leave the field out"),
         ({"label": "even\x1b[2J"}, "label", "printable"),
+        ({"speeds": [1.0]}, "speeds", "must be a 2 array"),
+        ({"speeds": [1.0, -0.5]}, "speeds", ">= 0 (m/s)"),
+        ({"speeds": None}, "speeds", "leave the field out"),
+        ({"failure": ""}, "failure", "non-empty string"),
+        ({"failure": 3}, "failure", "non-empty string"),
     ],
 )
 def test_episode_problems_name_line_and_field(tmp_path, change, field, message):

@@ -20,10 +20,11 @@ from masspush.data.recording import (
 )
 
 # The generator starts from the documented example (docs/examples/recording.jsonl, itself
-# checked by test_recording.py), its first episode given a label so that every field occurs.
+# checked by test_recording.py), its first episode given a label, a failure and speeds so that
+# every field occurs.
 _EXAMPLE = Path(__file__).parents[2] / "docs" / "examples" / "recording.jsonl"
 HEADER, _FIRST = (json.loads(line) for line in _EXAMPLE.read_text().splitlines()[:2])
-EPISODE = {**_FIRST, "label": "even"}
+EPISODE = {**_FIRST, "label": "even", "failure": "left_workspace", "speeds": [1.2, 0.8]}
 
 # Values of the wrong kind for any field: no field of a recording accepts all of these.
 WRONG_KINDS = [None, True, "1", 1e39, -1, [], {}, [[[]]], "\x1b[2J", math.nan]
@@ -32,6 +33,7 @@ ACCEPTS = {
     "robot": lambda v: isinstance(v, str),
     "setting": lambda v: isinstance(v, str),
     "label": lambda v: isinstance(v, str) and v.isprintable(),
+    "failure": lambda v: isinstance(v, str) and v.isprintable() and v,
     "id": lambda v: isinstance(v, str) and v.isprintable() and v,
 }
 
@@ -58,7 +60,7 @@ def _bad_files() -> list[tuple[str, str]]:
         if key in ("id", "lengths", "observations", "actions"):
             out.append((f"episode without {key}", _lines(
                 HEADER, {k: v for k, v in EPISODE.items() if k != key})))  # fmt: skip
-        if key in ("lengths", "observations", "actions", "masses"):  # one bad number inside
+        if key in ("lengths", "observations", "actions", "masses", "speeds"):  # one bad number
             array = np.asarray(EPISODE[key], dtype=object)
             for value in (True, "0.1", None, math.inf, 1e39, [0.1]):
                 damaged = array.copy()

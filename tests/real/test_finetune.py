@@ -67,7 +67,9 @@ def test_finetune_and_classify_commands(labelled_recording, tmp_path, capsys):
     out = tmp_path / "clf.pt"
     args = ["--setting", SETTING, "--model", "rp+", "--episodes", str(labelled_recording)]
     assert main(["finetune", *args, "--out", str(out), "--folds", "3"]) == 0
-    assert "cross-validated accuracy" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "cross-validated accuracy" in printed and "start-pose control" in printed
+    assert "pushes each, ended early: none" in printed
     assert main(["classify", "--classifier", str(out), "--episodes", str(labelled_recording)]) == 0
     assert "accuracy on the" in capsys.readouterr().out
     with pytest.raises(ValueError, match=r"not '2link-0\.1-1'"):
@@ -247,3 +249,19 @@ def test_the_classifier_trains_on_one_thread_and_gives_the_rest_back():
     with one_thread():
         assert torch.get_num_threads() == 1
     assert torch.get_num_threads() == before
+
+
+def test_the_start_pose_control_sees_the_start_pose_alone():
+    from masspush.data.rollout import Episodes
+    from masspush.real.finetune import start_pose_features
+
+    obs = np.zeros((2, 3, 4), np.float32)
+    obs[:, 0] = [[0.1, 0.2, 0.0, 0.3], [0.0, -0.1, np.pi / 2, -0.2]]
+    obs[:, 1:] = 9.0  # what the pushes did: never seen
+    episodes = Episodes.history(obs, np.zeros((2, 2, 2), np.float32), np.full((2, 2), 0.12))
+    got = start_pose_features(episodes)
+    np.testing.assert_allclose(
+        got,
+        [[0.1, 0.2, 1.0, 0.0, 0.3, 0.12, 0.12], [0.0, -0.1, 0.0, 1.0, -0.2, 0.12, 0.12]],
+        atol=1e-6,
+    )

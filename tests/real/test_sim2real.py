@@ -126,7 +126,7 @@ def test_the_target_worlds_differences_can_be_scaled(run, tmp_path):
     from masspush.real.target_world import scaled_world
 
     predictor, _, policy = model_and_policy("tp+", CONFIG.setting)
-    given, _ = record_classes(CONFIG, predictor, policy, "given", progress=False,
+    given, _, _ = record_classes(CONFIG, predictor, policy, "given", progress=False,
                               target=scaled_world(0))  # fmt: skip
     np.testing.assert_allclose(
         np.asarray(given.episodes[0]["observations"], float),
@@ -211,3 +211,67 @@ def test_run_counts_double_up_to_all_runs():
     assert run_counts(1) == [1]
     assert run_counts(8) == [1, 2, 4, 8]
     assert run_counts(6) == [1, 2, 4, 6]
+
+
+class _LosingRobot:
+    """A robot that loses the chain on the first push of every third episode and on the
+    second push of every third after it: the protocol's bookkeeping, without physics."""
+
+    n_links = 2
+
+    def __init__(self, setting, seed=0, masses=(0.16, 0.16), **_):
+        self.seed, self.episode = seed, -1
+        self.truth = {"masses": np.array(masses)}
+        self.rng = np.random.default_rng(seed)
+
+    def start(self):
+        from masspush.real.robot import RestPose
+
+        self.episode, self.k = self.episode + 1, 0
+        return RestPose(self.rng.normal(0, 0.05, 4).astype(np.float32), np.array([0.12, 0.12]))
+
+    def push(self, action):
+        from masspush.real.robot import PushReport
+
+        self.k += 1
+        if (self.episode % 3 == 0 and self.k == 1) or (self.episode % 3 == 1 and self.k == 2):
+            return PushReport(None, "left_workspace", speed=0.8)
+        return PushReport(self.rng.normal(0, 0.05, 4).astype(np.float32), speed=1.5)
+
+    def close(self):
+        pass
+
+
+def test_failed_episodes_are_counted_never_replaced(monkeypatch):
+    import masspush.real.backends as backends
+    from masspush.models import model_and_policy
+    from masspush.real.sim2real import record_classes
+
+    monkeypatch.setattr(backends, "SimRobot", _LosingRobot)
+    config = Sim2RealConfig(setting="2link-1-10", world="training", episodes_per_class=6)
+    predictor, _, policy = model_and_policy("rp", "2link-1-10")
+    recording, failures, classes = record_classes(config, predictor, policy, "t", progress=False)
+    # Per class, 6 attempted: 2 lost on the first push (nothing to classify), 2 lost on the
+    # second (kept with their one good push), 2 whole.
+    for tally in classes.values():
+        assert tally == {"attempted": 6, "kept": 4, "lost": 4, "failed": 0, "good_pushes": 6}
+    assert failures == {"left_workspace": 4 * len(PAPER_CLASSES)}
+    kept = [e for e in recording.episodes if e["label"] == "0.160-0.160"]
+    # No episode took a lost one's place: the ids are the attempts that had a good push.
+    assert [e["id"] for e in kept] == [f"0.160-0.160-00{i}" for i in (2, 3, 5, 6)]
+    assert [len(e["actions"]) for e in kept] == [1, 2, 1, 2]
+    assert [e.get("failure") for e in kept] == ["left_workspace", None, "left_workspace", None]
+    assert all(e["speeds"] == [1.5] * len(e["actions"]) for e in kept)
+
+
+@pytest.mark.slow
+def test_the_summary_reports_losses_and_the_start_pose_control(run):
+    out, results = run
+    for arm in results["arms"].values():
+        assert set(arm["by_class"]) == set(PAPER_CLASSES)
+        assert all(c["attempted"] == 2 for c in arm["by_class"].values())
+        assert 0 <= arm["start_pose_control"]["accuracy"] <= 1
+        for kind in ("estimate", "lstm"):
+            assert arm[kind]["accuracy_attempted"] <= arm[kind]["accuracy"]
+    table = (out / "summary.md").read_text()
+    assert "start-pose control" in table and "lost the chain" in table

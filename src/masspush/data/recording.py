@@ -11,7 +11,8 @@ every further line one episode. docs/real-robot.md specifies every field; in sho
 Observations are the chain's rest configurations q_0..q_k in the table frame (x, y in m;
 yaw and joint angles in rad), one more than the actions; actions are the pushes as the
 policy chose them, in masspush's action box [-1, 1]^2 (docs/real-robot.md gives the
-mapping to a contact point, direction and speed). `label` and `masses` are optional.
+mapping to a contact point, direction and speed). `label`, `masses`, `notes`, `failure` (why
+the episode ended early) and `speeds` (each push's speed as executed) are optional.
 
 `check_recording` reports every problem with its line and field; `read_recording` refuses
 a file with any problem and returns it as `Episodes` (the predictor's input).
@@ -35,7 +36,9 @@ from masspush.data.rollout import Episodes, empty_episodes
 FORMAT, VERSION = "masspush-episodes", 1
 UNITS = {"length": "m", "angle": "rad", "mass": "kg"}
 HEADER_FIELDS = {"format", "version", "n_links", "units", "robot", "setting", "created", "notes"}
-EPISODE_FIELDS = {"id", "lengths", "observations", "actions", "label", "masses", "notes"}
+EPISODE_FIELDS = {
+    "id", "lengths", "observations", "actions", "label", "masses", "notes", "failure", "speeds",
+}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -315,7 +318,8 @@ def _compact(episode: dict[str, Any]) -> dict[str, Any]:
     """A checked episode with its numbers as arrays (a tenth of the memory of lists)."""
     out = dict(episode)
     for key, dtype in (("observations", np.float32), ("actions", np.float32),
-                       ("lengths", np.float64), ("masses", np.float64)):  # fmt: skip
+                       ("lengths", np.float64), ("masses", np.float64),
+                       ("speeds", np.float32)):  # fmt: skip
         if key in out:
             out[key] = np.asarray(out[key], dtype)
     return out
@@ -399,6 +403,17 @@ def _check_episode(line: int, e: dict, n_links: int | None, problems: list[Probl
             bad("masses", "link masses must be > 0 (kg)")
     if "notes" in e and not isinstance(e["notes"], str):
         bad("notes", "must be a string")
+    if "failure" in e and not (
+        isinstance(e["failure"], str) and e["failure"] and e["failure"].isprintable()
+    ):
+        bad("failure", "must be a non-empty string of printable characters (why it ended)")
+    if "speeds" in e:
+        if e["speeds"] is None:
+            bad("speeds", "must be an array of numbers; leave the field out where unknown")
+        pushes = None if acts is None else len(acts)
+        speeds = _numbers(e["speeds"], "speeds", line, problems, shape=(pushes,))
+        if speeds is not None and np.any(speeds < 0):
+            bad("speeds", "speeds reached must be >= 0 (m/s)")
 
 
 def _numbers(value, name, line, problems, shape) -> np.ndarray | None:

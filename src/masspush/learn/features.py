@@ -10,6 +10,7 @@ import numpy as np
 
 from masspush.data.rollout import Episodes
 from masspush.learn.predictor import step_inputs
+from masspush.sim.simulate import REACH_FAILURES
 from masspush.sim.workspace import ROBOT_FRAME_DIM, Workspace
 
 REWARD_SCALE, REWARD_BETA = 10.0, 2.0
@@ -28,7 +29,6 @@ reach the push, or the chain came to rest out of its reach; `REACH_FAILURES`) [o
 far below a perfect estimate's reward as a perfect estimate is above zero, on top of the
 rewards of the pushes the episode no longer has, so that no estimate's gain pays for a
 throw out of reach (docs/real-robot.md)."""
-REACH_FAILURES = ("unreachable", "left_workspace")
 
 
 def push_reward(predicted: np.ndarray, truth: np.ndarray, failure: str | None) -> float:

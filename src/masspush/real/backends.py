@@ -58,9 +58,10 @@ class SimRobot:
     def push(self, action: np.ndarray) -> PushReport:
         obs, _, _, _, info = self.env.step(np.asarray(action, np.float32))
         details = {**info["push"], "settle_time": info["settle_time"], "config": info["config"]}
+        speed = float(info["push"]["executed_speed"])
         if info["failure"] is not None:
-            return PushReport(None, info["failure"], details)
-        return PushReport(obs[: self.env.physics.obs_dim].copy(), None, details)
+            return PushReport(None, info["failure"], details, speed)
+        return PushReport(obs[: self.env.physics.obs_dim].copy(), None, details, speed)
 
     def close(self) -> None:
         self.env.close()
@@ -115,7 +116,9 @@ class ReplayRobot:
             )
         self._k += 1
         config = np.asarray(self.episode["observations"][self._k], np.float32)
-        return PushReport(config, None, {"id": self.episode["id"]})
+        speeds = self.episode.get("speeds")
+        speed = None if speeds is None else float(speeds[self._k - 1])
+        return PushReport(config, None, {"id": self.episode["id"]}, speed)
 
     def close(self) -> None:
         pass

@@ -3,7 +3,7 @@ recording of labelled episodes (`masspush.real.finetune` holds the classifier it
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -21,6 +21,7 @@ from masspush.real.finetune import (
     labelled,
     load_classifier,
     save_classifier,
+    start_pose_features,
 )
 from masspush.settings import get_setting
 
@@ -69,18 +70,44 @@ def finetune(job: FinetuneJob, config: ClassifierConfig) -> list[str]:
     labels, classes = labelled(recording)
     features, owner = classifier_inputs(predictor, episodes, config)
     scores = cross_validate(features, labels, len(classes), config, owner)
+    control = cross_validate(
+        start_pose_features(episodes), labels, len(classes), replace(config, segment=0)
+    )
     lines = [
         f"{len(labels)} episodes, {len(classes)} classes: {config.folds}-fold cross-validated "
         f"accuracy {100 * scores['accuracy']:.1f} % (chance {100 * scores['chance']:.1f} %)",
         f"confusion (rows: truth, columns: predicted), classes in this order: {classes}",
         *("  " + " ".join(f"{v:4d}" for v in row) for row in scores["confusion"]),
+        f"start-pose control: {100 * control['accuracy']:.1f} % (the same classifier given "
+        "only each episode's start pose; well above chance, which episodes were recorded "
+        "depends on the class)",
+        *episode_counts(recording, classes),
     ]
     model = fit_classifier(features, labels[owner], len(classes), config)
     info = {"setting": setting.name, "predictor": str(path), "predictor_meta": meta,
             "features": config.features, "segment": config.segment, "runs": config.runs,
-            "episodes": str(job.episodes), "cross_validation": scores}  # fmt: skip
+            "episodes": str(job.episodes), "cross_validation": scores,
+            "start_pose_control": control}  # fmt: skip
     saved = save_classifier(job.out, model, classes, config, info)
     return [*lines, f"saved {saved} (trained on all)"]
+
+
+def episode_counts(recording: Recording, classes: list[str]) -> list[str]:
+    """Per class: episodes, pushes per episode, and those that ended early by reason (the
+    `failure` a recording's episodes may carry)."""
+    lines = []
+    for label in classes:
+        ours = [e for e in recording.episodes if e.get("label") == label]
+        pushes = np.mean([len(e["actions"]) for e in ours])
+        ended: dict[str, int] = {}
+        for e in ours:
+            if "failure" in e:
+                ended[e["failure"]] = ended.get(e["failure"], 0) + 1
+        early = ", ".join(f"{n} {why}" for why, n in sorted(ended.items())) or "none"
+        lines.append(
+            f"  {label}: {len(ours)} episodes, {pushes:.1f} pushes each, ended early: {early}"
+        )
+    return lines
 
 
 def _check_recording_fits(

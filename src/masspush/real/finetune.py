@@ -185,6 +185,18 @@ def predictor_features(
     return np.concatenate(rows)
 
 
+def start_pose_features(episodes: Episodes) -> np.ndarray:
+    """The control classifier's inputs (E, 3 + n + n - 1): each episode's start pose alone,
+    x, y, the cosine and sine of yaw, the joint angles, and the link lengths, before any
+    push. Above chance, it shows that which episodes were kept depends on the class (a
+    selection effect), not what the pushes said."""
+    q0 = episodes.observations[:, 0].astype(np.float64)
+    yaw = q0[:, 2:3]
+    return np.concatenate(
+        [q0[:, :2], np.cos(yaw), np.sin(yaw), q0[:, 3:], episodes.lengths], axis=1
+    ).astype(np.float32)
+
+
 FEATURE_CHUNK = 16_384
 """Episodes read by the predictor at once for the classifier's features."""
 

@@ -43,6 +43,9 @@ class PushReport:
     something other than the tool): the episode ends there."""
     details: dict[str, Any] = field(default_factory=dict)
     """Backend-specific extras (the simulation reports the executed push, settle time)."""
+    speed: float | None = None
+    """The push's speed as executed, m/s, where the robot knows it: the tool's top speed
+    along the push before the hold ended (docs/real-robot.md, "The push as executed")."""
 
 
 class Robot(Protocol):
@@ -79,13 +82,18 @@ class EstimationEpisode:
     def recorded(self, **fields: Any) -> dict[str, Any]:
         """The episode as a recording's episode (`masspush.data.recording`): its successful
         pushes and rest poses, plus `fields` (id, label, masses...)."""
-        configs = [r.config for r in self.reports if r.config is not None]
-        return {
+        kept = [r for r in self.reports if r.config is not None]
+        episode = {
             **fields,
             "lengths": self.start.lengths,
-            "observations": [self.start.config, *configs],
-            "actions": self.actions[: len(configs)],
+            "observations": [self.start.config, *(r.config for r in kept)],
+            "actions": self.actions[: len(kept)],
         }
+        if kept and all(r.speed is not None for r in kept):
+            episode["speeds"] = [r.speed for r in kept]
+        if self.failure is not None:
+            episode["failure"] = self.failure
+        return episode
 
     def history(self) -> Episodes:
         """The successful pushes so far, in the predictor's input format."""

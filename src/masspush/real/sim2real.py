@@ -31,7 +31,9 @@ from masspush.real.finetune import (
     first_pushes,
     labelled,
     predictor_features,
+    start_pose_features,
 )
+from masspush.sim.simulate import REACH_FAILURES
 
 if TYPE_CHECKING:
     from masspush.real.target_world import TargetWorld
@@ -117,10 +119,14 @@ def record_classes(
     config: Sim2RealConfig, predictor, policy, robot_name: str, desc: str = "",
     progress: bool = True, target: TargetWorld | None = None,
 ):  # fmt: skip
-    """`config.episodes_per_class` usable episodes (at least one push seen) of each of the
-    paper's classes, pushed by `policy` in `config.world`: the recording, labelled, and the
-    failed pushes by reason. `target` replaces the target world (default: the target world
-    at `config.severity`)."""
+    """`config.episodes_per_class` episodes of each of the paper's classes, pushed by
+    `policy` in `config.world`: the recording (labelled; every episode with at least one
+    good push, classified from the pushes it has), the failed pushes by reason, and per
+    class the episodes attempted, kept, lost (the robot lost the chain:
+    `sim.simulate.REACH_FAILURES`), failed otherwise, and the good pushes. An episode that
+    fails is never replaced: which episodes survive could depend on the class, and a lead
+    measured on survivors would then be partly selection (docs/real-robot.md). `target`
+    replaces the target world (default: the target world at `config.severity`)."""
     from masspush.data.recording import Recording
     from masspush.real.backends import SimRobot
     from masspush.real.robot import run_segments
@@ -131,6 +137,7 @@ def record_classes(
     pushes = setting.env_config().pushes
     recording = Recording(n_links=setting.n_links, robot=robot_name, setting=setting.name)
     failures: dict[str, int] = {}
+    classes: dict[str, dict[str, int]] = {}
     wanted = config.episodes_per_class * len(PAPER_CLASSES)
     world = target or scaled_world(config.severity)
     bar = tqdm(total=wanted, desc=desc, disable=not progress)
@@ -150,23 +157,28 @@ def record_classes(
                 allow_out_of_range=True,
             )
         )
-        got = 0
-        while got < config.episodes_per_class:
+        tally = classes[label] = {k: 0 for k in ("attempted", "kept", "lost", "failed")}
+        tally["good_pushes"] = 0
+        for i in range(config.episodes_per_class):
             episode = run_segments(
                 robot, predictor, policy, pushes, config.segments, seed=robot.seed
             )
+            tally["attempted"] += 1
+            tally["good_pushes"] += len(episode.estimates)
             if episode.failure is not None:
                 failures[episode.failure] = failures.get(episode.failure, 0) + 1
-            if not episode.estimates:
-                continue
-            got += 1
-            recording.episodes.append(
-                episode.recorded(id=f"{label}-{got:03d}", label=label, masses=robot.truth["masses"])
-            )
+                tally["lost" if episode.failure in REACH_FAILURES else "failed"] += 1
+            if episode.estimates:
+                tally["kept"] += 1
+                recording.episodes.append(
+                    episode.recorded(
+                        id=f"{label}-{i + 1:03d}", label=label, masses=robot.truth["masses"]
+                    )
+                )
             bar.update()
         robot.close()
     bar.close()
-    return recording, failures
+    return recording, failures, classes
 
 
 def record_arm(
@@ -174,7 +186,8 @@ def record_arm(
     target: TargetWorld | None = None, robot_name: str | None = None,
 ) -> dict[str, Any]:  # fmt: skip
     """Run one arm's episodes in the target world into the recording at `path` (kept and
-    reused when complete, with its failed-push counts beside it); returns the counts.
+    reused when complete, with its failed pushes and each class's episodes attempted, kept
+    and lost beside it); returns those counts.
     `target` replaces the target world (`record_classes`); `robot_name`, which names the
     recording and decides whether a kept one is reused, then tells the worlds apart."""
     from masspush.data.recording import read_recording, write_recording
@@ -193,12 +206,17 @@ def record_arm(
             robot_name += f", {config.segments} runs of the policy per episode"
         robot_name += "" if model == ARMS[arm] else f", {model}"
     if path.exists() and counts.exists():
+        kept = json.loads(counts.read_text())
         recording = read_recording(path)
-        if len(recording.episodes) == wanted and recording.robot == robot_name:
-            return {"episodes": wanted, "failed_pushes": json.loads(counts.read_text()),
-                    "reused": True}  # fmt: skip
+        if (
+            isinstance(kept, dict)
+            and "by_class" in kept  # written by the protocol that never replaces episodes
+            and sum(c["attempted"] for c in kept["by_class"].values()) == wanted
+            and recording.robot == robot_name
+        ):
+            return {"episodes": wanted, **kept, "reused": True}
     predictor, _, policy = model_and_policy(model, config.setting)
-    recording, failures = record_classes(
+    recording, failures, classes = record_classes(
         config,
         predictor,
         policy,
@@ -208,8 +226,9 @@ def record_arm(
         target,
     )
     write_recording(path, recording)
-    counts.write_text(json.dumps(failures) + "\n")
-    return {"episodes": wanted, "failed_pushes": failures, "reused": False}
+    kept = {"failed_pushes": failures, "by_class": classes}
+    counts.write_text(json.dumps(kept) + "\n")
+    return {"episodes": wanted, **kept, "reused": False}
 
 
 def score_arm(config: Sim2RealConfig, arm: str, path: Path) -> dict[str, Any]:
@@ -241,6 +260,12 @@ def score_arm(config: Sim2RealConfig, arm: str, path: Path) -> dict[str, Any]:
 
     for kind in FEATURE_KINDS:
         scores[kind] = score(episodes, kind)
+    # The control: the start pose alone. Above chance only if which episodes were kept
+    # depends on the class.
+    control = replace(config.classifier, segment=0)
+    scores["start_pose_control"] = cross_validate(
+        start_pose_features(episodes), labels, len(classes), control
+    )
     # Without any fine-tuning: how far the simulation-trained estimate is from the truth.
     estimate = np.exp(predictor_features(predictor, episodes, "estimate", segment))
     scores["percentage_error"] = percentage_error(estimate, episodes.mass_distribution)
@@ -276,17 +301,24 @@ def run_sim2real(
     for arm in ARMS:
         path = out / f"{arm}.jsonl"
         collected = record_arm(config, arm, path, progress)
-        results["arms"][arm] = {**collected, **score_arm(config, arm, path)}
+        scores = score_arm(config, arm, path)
+        for kind in FEATURE_KINDS:
+            # Every attempted episode counts: one with no good push is a wrong answer.
+            right = np.trace(np.array(scores[kind]["confusion"]))
+            scores[kind]["accuracy_attempted"] = float(right / collected["episodes"])
+        results["arms"][arm] = {**collected, **scores}
     random, learned = results["arms"]["random"], results["arms"]["learned"]
-    if random["ids"] == learned["ids"]:  # the same chains, so a paired comparison
-        results["paired"] = {
-            kind: paired_test(
-                np.array(learned["labels"]),
-                np.array(learned[kind]["predicted"]),
-                np.array(random[kind]["predicted"]),
-            )
-            for kind in FEATURE_KINDS
-        }
+    # The same chains, so a paired comparison, on the episodes both arms kept.
+    both = sorted(set(random["ids"]) & set(learned["ids"]))
+    at = {arm: [r["ids"].index(i) for i in both] for arm, r in results["arms"].items()}
+    results["paired"] = {
+        kind: paired_test(
+            np.array(learned["labels"])[at["learned"]],
+            np.array(learned[kind]["predicted"])[at["learned"]],
+            np.array(random[kind]["predicted"])[at["random"]],
+        )
+        for kind in FEATURE_KINDS
+    }
     (out / "summary.json").write_text(json.dumps(results, indent=2) + "\n")
     (out / "summary.md").write_text(summary_markdown(results))
     if config.segments > 1:
@@ -360,16 +392,36 @@ def summary_markdown(results: dict[str, Any]) -> str:
     config = results["config"]
     lines = [
         "| policy | model | accuracy, estimate features | accuracy, LSTM features (paper's) "
-        "| paper (real UR10) | chance | predictor error, no fine-tuning | failed pushes |",
-        "|---|---|---|---|---|---|---|---|",
+        "| paper (real UR10) | chance | start-pose control | predictor error, no fine-tuning "
+        "| failed pushes |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for arm, r in results["arms"].items():
         lines.append(
             f"| {arm} | {r['model']} | {100 * r['estimate']['accuracy']:.1f} % "
             f"| {100 * r['lstm']['accuracy']:.1f} % | {PAPER_ACCURACY[arm]:.1f} % "
-            f"| {100 * r['estimate']['chance']:.0f} % | {r['percentage_error']:.2f} "
+            f"| {100 * r['estimate']['chance']:.0f} % "
+            f"| {100 * r['start_pose_control']['accuracy']:.1f} % | {r['percentage_error']:.2f} "
             f"| {sum(r.get('failed_pushes', {}).values())} |"
         )
+    lines += ["", "Accuracy is over the episodes kept (at least one good push), each classified "
+              "from the pushes it has; no episode is replaced. The start-pose control is the "
+              "same classifier given only each episode's start pose: above chance, which "
+              "episodes were kept depends on the class.", "",
+              "| policy | class | attempted | kept | lost the chain | failed otherwise "
+              "| good pushes per episode |", "|---|---|---|---|---|---|---|"]  # fmt: skip
+    for arm, r in results["arms"].items():
+        for label, c in r.get("by_class", {}).items():
+            lines.append(
+                f"| {arm} | {label} | {c['attempted']} | {c['kept']} | {c['lost']} "
+                f"| {c['failed']} | {c['good_pushes'] / max(c['attempted'], 1):.1f} |"
+            )
+        if "accuracy_attempted" in r["estimate"]:
+            lines.append(
+                f"| {arm} | all, counting an episode without a good push as wrong | | | | "
+                f"| accuracy {100 * r['estimate']['accuracy_attempted']:.1f} % (estimate), "
+                f"{100 * r['lstm']['accuracy_attempted']:.1f} % (LSTM) |"
+            )
     if config["segments"] > 1:
         reading = {"each": "each run classified on its own, an episode's runs' log-probabilities "
                    "added up", "average": "the runs' features averaged"}  # fmt: skip

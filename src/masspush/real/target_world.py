@@ -394,9 +394,10 @@ class TargetWorldRobot:
         outcome = self.sim.push(executed)
         details = {"executed": executed, "settle_time": outcome.settle_time}
         details["config"] = self.sim.config()
+        speed = outcome.executed_speed
         if outcome.failure is not None:
-            return PushReport(None, outcome.failure, details)
-        return PushReport(self._observe(), None, details)
+            return PushReport(None, outcome.failure, details, speed)
+        return PushReport(self._observe(), None, details, speed)
 
     def close(self) -> None:
         self.sim = None

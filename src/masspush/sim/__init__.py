@@ -10,7 +10,7 @@ from masspush._exports import lazy, names
 EXPORTS = {
     "chain": ("ChainParams", "link_poses", "sample_chain", "wrap_angle"),
     "actions": ("PushGeometry", "PushSpec", "action_to_push", "push_geometry"),
-    "simulate": ("FAILURES", "ChainSim", "PushOutcome"),
+    "simulate": ("FAILURES", "REACH_FAILURES", "ChainSim", "PushOutcome"),
     "batch": ("ChainBatch",),
     "pushers": ("PUSHERS", "PUSHER_KINDS", "ArmPusher", "StiffPusher", "make_pusher",
                 "pusher_kind"),

@@ -101,6 +101,7 @@ class ChainBatch:
                 failure=failures[i],
                 settle_time=steps[i] * self.physics.timestep,
                 steps=controls.shape[1] + steps[i],
+                executed_speed=specs[row].speed,  # the stiff pusher holds its speed
             )
         return outcomes
 

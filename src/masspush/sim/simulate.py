@@ -25,6 +25,10 @@ arm part other than the end-effector touched the chain; the arm could not reach 
 the chain came to rest outside a stationary robot's workspace, where its next push could
 not be made (`masspush.sim.workspace`). New reasons go at the end: datasets store the index."""
 
+REACH_FAILURES = ("unreachable", "left_workspace")
+"""The failures after which the robot has lost the chain: it could not make the push, or
+the chain came to rest out of its reach. The others are the chain's own."""
+
 # Codes of `classify`, vectorised over many simulations.
 OK, NAN, UNSTABLE = 0, 1, 2
 
@@ -41,6 +45,8 @@ class PushOutcome:
     """Simulated time from the end of the push until rest (or failure), s."""
     steps: int
     """Physics steps the push and the settling took."""
+    executed_speed: float = 0.0
+    """The push's speed as executed (`Pusher.executed_speed`), m/s."""
 
 
 def classify(
@@ -163,6 +169,7 @@ class ChainSim:
             failure=failure,
             settle_time=settle_steps * self.physics.timestep,
             steps=push_steps + settle_steps,
+            executed_speed=self.pusher.executed_speed,
         )
 
     def reach_failure(self) -> str | None:

@@ -177,6 +177,8 @@ class ArmPusher:
         self.use_compiled = True
         """Run the control loop compiled where the library is there (`compiled`); False:
         the Python law, the reference."""
+        self.executed_speed = 0.0
+        """The last push's top tip speed along the push, m/s (`Pusher.executed_speed`)."""
         self.workspace = self.arm.workspace
         """Where a stationary base stands and what it reaches; None: the base follows."""
         self._stationary_seeds: dict[tuple[int, int], np.ndarray] = {}
@@ -242,6 +244,7 @@ class ArmPusher:
         on_step: StepHook | None = None,
     ) -> str | None:
         self.trace = PushTrace()
+        self.executed_speed = 0.0
         self._on_step = on_step
         if push.speed <= 0.0:
             return None  # a zero-speed push touches nothing
@@ -294,6 +297,7 @@ class ArmPusher:
             failure = self._deliver_compiled(
                 lib, model, data, h, standoff, target_r, velocity, direction, hold, deadline
             )
+            self.executed_speed = max(self.trace.tip_speed, default=0.0)
             self.park(model, data)
             return failure
         failure = None
@@ -316,6 +320,7 @@ class ArmPusher:
             if self.trace.contact_step is None and step >= deadline:
                 failure = "unreachable"
                 break
+        self.executed_speed = max(self.trace.tip_speed, default=0.0)
         # 4. Retract towards the standoff point, no target velocity.
         if failure is None:
             for _ in range(round(RETRACT_TIME / dt)):

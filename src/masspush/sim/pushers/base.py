@@ -28,6 +28,9 @@ class Pusher(Protocol):
     workspace: Workspace | None
     """A stationary robot's reach (`masspush.sim.workspace`); None: it reaches the chain
     wherever it lies."""
+    executed_speed: float
+    """The last push's speed as executed: the tool's top speed along the push before the
+    hold ended, m/s (below the commanded one where the robot could not reach it)."""
 
     def add_to(self, spec: mujoco.MjSpec, physics: PhysicsConfig) -> None:
         """Add the pusher's bodies, joints and actuators to a scene being built."""

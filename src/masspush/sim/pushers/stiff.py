@@ -34,6 +34,7 @@ class StiffPusher:
 
     name = "stiff"
     workspace = None  # the idealised pusher reaches the chain wherever it lies
+    executed_speed = 0.0  # velocity-controlled and 10^4 kg: it holds the commanded speed
 
     def add_to(self, spec: mujoco.MjSpec, physics: PhysicsConfig) -> None:
         body = spec.worldbody.add_body(
@@ -86,6 +87,7 @@ class StiffPusher:
         physics: PhysicsConfig,
         on_step: StepHook | None = None,
     ) -> str | None:
+        self.executed_speed = push.speed
         qadr, dadr = _pusher_addresses(model)
         data.qpos[qadr : qadr + 2] = self.start_qpos(push, physics)
         data.qvel[dadr : dadr + 2] = 0.0
