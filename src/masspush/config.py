@@ -301,6 +301,59 @@ class PhysicsConfig:
         """Length of a chain configuration: root x, y, yaw and n - 1 joint angles."""
         return 3 + self.n_links - 1
 
+    @property
+    def geometry(self) -> ChainGeometry:
+        """The simulated chain's cross-section and hinge gap, with the stiff pusher's tip
+        radius (an arm's tool has its own: `masspush.sim.pushers.tool_radius`)."""
+        return ChainGeometry(self.link_width, self.link_height, self.joint_gap, self.pusher_radius)
+
+    def with_geometry(self, geometry: ChainGeometry) -> PhysicsConfig:
+        """This world with a measured chain's cross-section and hinge gap (what `push_geometry`
+        reads to place a push on the chain); the tool's radius stays the model's."""
+        return replace(
+            self,
+            link_width=geometry.link_width,
+            link_height=geometry.link_height,
+            joint_gap=geometry.joint_gap,
+        )
+
+
+@dataclass(frozen=True)
+class ChainGeometry:
+    """The shape of a chain where a push meets it, as a lab measures it on its own object
+    (docs/real-robot.md, "Your chain's geometry"). No defaults: a lab enters its own.
+
+    `push_geometry` places a push from the link width (which face is touched) and the hinge
+    gap (where each link's centre is); a model was trained for one geometry, and a chain of
+    another is pushed differently (`masspush.real.robot.check_geometry` warns)."""
+
+    link_width: float
+    """Distance between a link's two pushed faces, m."""
+    link_height: float
+    """Height of a link above the table, m."""
+    joint_gap: float
+    """Gap between the ends of neighbouring links, the hinge in its middle, m."""
+    tool_radius: float
+    """Radius of the tool where it touches the link (the dowel's, the ball's), m."""
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if f.name == "joint_gap":  # links may touch end to end
+                _check_non_negative(f.name, value)
+            else:
+                _check_positive(f.name, value)
+            if value > 0.5:
+                raise ValueError(f"{f.name} = {value} m: a chain's geometry is in metres")
+
+    def differences(self, other: ChainGeometry, tolerance: float = 1e-3) -> list[str]:
+        """'name: ours vs theirs' for each measure that differs by more than `tolerance` m."""
+        return [
+            f"{f.name} {getattr(self, f.name)} m vs {getattr(other, f.name)} m"
+            for f in fields(self)
+            if abs(getattr(self, f.name) - getattr(other, f.name)) > tolerance
+        ]
+
 
 def default_pushes(n_links: int) -> int:
     """Pushes per episode: 2 for 2 links, 3 for 3 links [code]; n for longer chains [ours]."""

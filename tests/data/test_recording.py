@@ -39,6 +39,35 @@ def write_lines(tmp_path, *objects) -> str:
     return str(path)
 
 
+def test_a_recording_carries_the_labs_geometry(tmp_path):
+    from masspush.config import ChainGeometry
+
+    lab = ChainGeometry(link_width=0.05, link_height=0.03, joint_gap=0.02, tool_radius=0.006)
+    recording = Recording(n_links=2, episodes=[EPISODE], geometry=lab)
+    assert read_recording(write_recording(tmp_path / "g.jsonl", recording)).geometry == lab
+    assert (
+        read_recording(
+            write_recording(tmp_path / "n.jsonl", Recording(2, episodes=[EPISODE]))
+        ).geometry
+        is None
+    )
+
+
+@pytest.mark.parametrize(
+    "geometry",
+    [
+        {"link_width": 0.05},
+        {"link_width": 0.05, "link_height": 0.03, "joint_gap": 0.02, "tool_radius": "6 mm"},
+        {"link_width": 0.05, "link_height": 0.03, "joint_gap": -0.02, "tool_radius": 0.006},
+        {"link_width": 50, "link_height": 30, "joint_gap": 20, "tool_radius": 6},
+        [0.05, 0.03, 0.02, 0.006],
+    ],
+)
+def test_a_bad_geometry_is_a_header_problem(tmp_path, geometry):
+    problems = check_recording(write_lines(tmp_path, {**HEADER, "geometry": geometry}, EPISODE))
+    assert [(p.line, p.field) for p in problems] == [(1, "geometry")]
+
+
 def test_a_recording_round_trips_and_becomes_predictor_input(tmp_path):
     short = {**EPISODE, "id": "b", "observations": EPISODE["observations"][:2]}
     short["actions"] = EPISODE["actions"][:1]

@@ -1,3 +1,6 @@
+import warnings
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -89,3 +92,54 @@ def test_runs_of_the_policy_go_on_from_where_the_last_left_the_chain(predictor):
     assert len(runs.run_estimates) == -(-len(runs.estimates) // 2)
     with pytest.raises(ValueError, match="segments"):
         run_segments(robot, predictor, RandomPolicy(), 2, 0)
+
+
+def test_a_chain_of_another_geometry_than_the_models_warns():
+    from masspush.config import ChainGeometry, PhysicsConfig
+    from masspush.models import model_and_policy
+    from masspush.real.robot import GeometryWarning, check_geometry, model_geometry
+
+    _, meta, _ = model_and_policy("tp+", "real-ur10")
+    trained = model_geometry(meta)
+    physics = PhysicsConfig()
+    assert trained == ChainGeometry(
+        physics.link_width,
+        physics.link_height,
+        physics.joint_gap,
+        0.006,  # the UR10's dowel
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_geometry(meta, trained)  # the same chain: silent
+        check_geometry(meta, replace(trained, joint_gap=trained.joint_gap + 5e-4))  # within 1 mm
+    with pytest.warns(GeometryWarning, match=r"joint_gap 0.04 m vs 0.02 m"):
+        check_geometry(meta, replace(trained, joint_gap=0.02))
+
+
+def test_push_geometry_reads_the_labs_own_chain():
+    from masspush.config import ChainGeometry, PhysicsConfig
+    from masspush.sim.actions import action_to_push, push_geometry
+
+    lab = ChainGeometry(link_width=0.05, link_height=0.03, joint_gap=0.02, tool_radius=0.006)
+    physics = PhysicsConfig(n_links=2).with_geometry(lab)
+    assert physics.geometry == replace(lab, tool_radius=physics.pusher_radius)
+    config, lengths = np.array([0.0, 0.0, 0.0, 0.0]), (0.12, 0.12)
+    push = action_to_push(np.array([0.5, 0.5]), lengths, physics)  # link 2, from -y
+    g = push_geometry(push, config, lengths, physics)
+    # Link 2's centre lies one link length plus the lab's gap from link 1's; the face at
+    # half the lab's width.
+    assert g.contact[0] == pytest.approx(0.12 + 0.02 + push.offset)
+    assert g.contact[1] == pytest.approx(-0.025)
+    default = push_geometry(push, config, lengths, PhysicsConfig(n_links=2))
+    assert default.contact[0] == pytest.approx(0.12 + 0.04 + push.offset)
+
+
+@pytest.mark.parametrize(
+    "bad", [{"link_width": 0.0}, {"joint_gap": -0.01}, {"tool_radius": 6.0}, {"link_height": None}]
+)
+def test_a_measured_geometry_is_checked(bad):
+    from masspush.config import ChainGeometry
+
+    values = {"link_width": 0.04, "link_height": 0.03, "joint_gap": 0.04, "tool_radius": 0.006}
+    with pytest.raises(ValueError):
+        ChainGeometry(**{**values, **bad})

@@ -50,3 +50,23 @@ def test_pinned_masses_outside_the_setting_need_to_be_allowed():
     allowed = SessionConfig("stiff", SETTING, "rp+", masses=(20.0, 20.0), allow_out_of_range=True)
     (episode,) = run_session(allowed, say=lambda _: None)
     assert list(episode["masses"]) == [20.0, 20.0]
+
+
+def test_a_replay_of_another_chain_geometry_warns(recording_of_long_episodes, tmp_path):
+    from dataclasses import replace
+
+    from masspush.data.recording import read_recording
+    from masspush.real.robot import GeometryWarning
+
+    recording = read_recording(recording_of_long_episodes)
+    lab = replace(_stiff_geometry(), joint_gap=0.02)
+    recording.geometry = lab
+    path = write_recording(tmp_path / "lab.jsonl", recording)
+    with pytest.warns(GeometryWarning, match="joint_gap"):
+        run_session(SessionConfig("replay", SETTING, "rp+", str(path)), say=lambda _: None)
+
+
+def _stiff_geometry():
+    from masspush.config import PhysicsConfig
+
+    return PhysicsConfig().geometry

@@ -24,18 +24,22 @@ import json
 import math
 import os
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from masspush.config import MAX_PUSHES
+from masspush.config import MAX_PUSHES, ChainGeometry
 from masspush.data.rollout import Episodes, empty_episodes
 
 FORMAT, VERSION = "masspush-episodes", 1
 UNITS = {"length": "m", "angle": "rad", "mass": "kg"}
-HEADER_FIELDS = {"format", "version", "n_links", "units", "robot", "setting", "created", "notes"}
+HEADER_FIELDS = {
+    "format", "version", "n_links", "units", "robot", "setting", "created", "notes", "geometry",
+}  # fmt: skip
+GEOMETRY_FIELDS = ("link_width", "link_height", "joint_gap", "tool_radius")
+"""The header's optional `geometry`: the lab's chain and tool, m (`config.ChainGeometry`)."""
 EPISODE_FIELDS = {
     "id", "lengths", "observations", "actions", "label", "masses", "notes", "failure", "speeds",
 }  # fmt: skip
@@ -76,6 +80,8 @@ class Recording:
     setting: str | None = None
     notes: str = ""
     episodes: list[dict[str, Any]] = field(default_factory=list)
+    geometry: ChainGeometry | None = None
+    """The chain and tool the episodes were recorded with, where the lab measured them."""
 
     @property
     def labels(self) -> list[str | None]:
@@ -114,6 +120,8 @@ def write_recording(path: str | os.PathLike, recording: Recording) -> Path:
         header["setting"] = recording.setting
     if recording.notes:
         header["notes"] = recording.notes
+    if recording.geometry is not None:
+        header["geometry"] = asdict(recording.geometry)
     lines = [json.dumps(header)]
     for e in recording.episodes:
         lines.append(json.dumps({k: _plain(v) for k, v in e.items() if v is not None}))
@@ -187,6 +195,7 @@ def _recording(header: dict[str, Any], episodes: list[dict[str, Any]]) -> Record
         setting=header.get("setting"),
         notes=header.get("notes", ""),
         episodes=episodes,
+        geometry=ChainGeometry(**header["geometry"]) if "geometry" in header else None,
     )
 
 
@@ -353,7 +362,23 @@ def _check_header(line: int, header: dict, problems: list[Problem]) -> int | Non
     for key in ("robot", "setting", "created", "notes"):
         if key in header and not isinstance(header[key], str):
             problems.append(Problem(line, key, "must be a string"))
+    if "geometry" in header:
+        _check_geometry(line, header["geometry"], problems)
     return n_links
+
+
+def _check_geometry(line: int, value: Any, problems: list[Problem]) -> None:
+    want = "{" + ", ".join(f'"{k}": m' for k in GEOMETRY_FIELDS) + "}"
+    if not isinstance(value, dict) or set(value) != set(GEOMETRY_FIELDS):
+        problems.append(Problem(line, "geometry", f"must be an object {want}"))
+        return
+    numbers = _numbers([value[k] for k in GEOMETRY_FIELDS], "geometry", line, problems, (4,))
+    if numbers is None:
+        return
+    try:
+        ChainGeometry(*(float(v) for v in numbers))
+    except ValueError as err:
+        problems.append(Problem(line, "geometry", str(err)))
 
 
 def _check_episode(line: int, e: dict, n_links: int | None, problems: list[Problem]) -> None:

@@ -9,13 +9,15 @@ The names below are its public API (what experiments/ may import); those of the 
 from masspush._exports import lazy, names
 
 EXPORTS = {
-    "robot": ("EstimationEpisode", "PushReport", "RestPose", "Robot", "fmt", "print_push",
-              "run_estimation", "run_segments"),
+    "robot": ("EstimationEpisode", "GeometryWarning", "PushReport", "RestPose", "Robot",
+              "check_geometry", "fmt", "model_geometry", "print_push", "run_estimation",
+              "run_segments"),
     "backends": ("BACKENDS", "RecordedPolicy", "ReplayMismatchError", "ReplayRobot", "SimRobot",
                  "make_robot"),
     "session": ("SessionConfig", "run_session"),
     "finetune": ("PAPER_CLASSES", "ClassifierConfig", "classifier_inputs", "cross_validate",
-                 "episode_log_probs", "fit_classifier", "labelled", "predictor_features"),
+                 "episode_log_probs", "fit_classifier", "labelled", "predictor_features",
+                 "start_pose_features"),
     "classify": ("ClassifyJob", "FinetuneJob", "classify", "finetune"),
     "target_world": ("TRAINING_KNOBS", "Lab", "TargetWorld", "TargetWorldRobot", "WorldRanges",
                      "scaled_world"),

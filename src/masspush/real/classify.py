@@ -23,6 +23,7 @@ from masspush.real.finetune import (
     save_classifier,
     start_pose_features,
 )
+from masspush.real.robot import check_geometry
 from masspush.settings import get_setting
 
 
@@ -61,7 +62,7 @@ def finetune(job: FinetuneJob, config: ClassifierConfig) -> list[str]:
     )
     recording = read_recording(job.episodes)
     _check_recording_fits(
-        recording, job.episodes, setting.name, setting.n_links, job.allow_mismatch
+        recording, job.episodes, setting.name, setting.n_links, job.allow_mismatch, meta
     )
     episodes = recording.to_episodes()
     if job.predictor_out:
@@ -111,12 +112,16 @@ def episode_counts(recording: Recording, classes: list[str]) -> list[str]:
 
 
 def _check_recording_fits(
-    recording: Recording, where: str, setting: str, n_links: int, allow_mismatch: bool
-) -> None:
+    recording: Recording, where: str, setting: str, n_links: int, allow_mismatch: bool,
+    predictor_meta: dict | None = None,
+) -> None:  # fmt: skip
     """A recording read by a predictor of `setting`: of that setting (unless
-    --allow-mismatch) and always of its number of links."""
+    --allow-mismatch) and always of its number of links; a warning where the recording's
+    chain geometry is not the predictor's."""
     check_match("n_links", where, recording.n_links, n_links, allowable=False)
     check_match("setting", where, recording.setting, setting, allow_mismatch)
+    if recording.geometry is not None and predictor_meta is not None:
+        check_geometry(predictor_meta, recording.geometry)
 
 
 @dataclass(frozen=True)
@@ -150,8 +155,9 @@ def classify(job: ClassifyJob) -> list[str]:
     for i, piece in enumerate(iter_recording(job.episodes)):
         if i == 0:
             _check_recording_fits(
-                piece, job.episodes, meta["setting"], predictor.n_links, job.allow_mismatch
-            )
+                piece, job.episodes, meta["setting"], predictor.n_links, job.allow_mismatch,
+                meta.get("predictor_meta"),
+            )  # fmt: skip
         features, owner = classifier_inputs(predictor, piece.to_episodes(), reading)
         probs = np.exp(episode_log_probs(model, features, owner, len(piece.episodes)))
         for episode, p in zip(piece.episodes, probs, strict=True):

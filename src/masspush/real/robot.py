@@ -13,13 +13,50 @@ backend is a class with the same three methods; docs/real-robot.md shows one.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import numpy as np
 
+from masspush.config import ChainGeometry
 from masspush.data.rollout import Episodes
+
+
+class GeometryWarning(UserWarning):
+    """A chain (or tool) of another geometry than the model was trained for."""
+
+
+def model_geometry(meta: dict[str, Any]) -> ChainGeometry:
+    """The chain geometry and tool radius a model (its metadata) was trained for."""
+    from masspush.settings import Setting
+    from masspush.sim.pushers import tool_radius
+
+    known = {"name", "n_links", "mass_range", "overrides"}
+    setting = Setting(**{k: v for k, v in meta["setting"].items() if k in known})
+    physics = setting.physics()
+    return ChainGeometry(
+        physics.link_width,
+        physics.link_height,
+        physics.joint_gap,
+        tool_radius(meta.get("pusher", "stiff"), physics),
+    )
+
+
+def check_geometry(meta: dict[str, Any], geometry: ChainGeometry, tolerance: float = 1e-3) -> None:
+    """Warn (`GeometryWarning`) where a lab's measured chain and tool differ from what the
+    model was trained for by more than `tolerance` m: its pushes land where the model
+    expects, but the chain answers as another chain would."""
+    differences = model_geometry(meta).differences(geometry, tolerance)
+    if differences:
+        warnings.warn(
+            "the model was trained for another chain geometry (model vs yours): "
+            + "; ".join(differences)
+            + " (docs/real-robot.md, 'Your chain's geometry')",
+            GeometryWarning,
+            stacklevel=2,
+        )
 
 
 @dataclass(frozen=True)

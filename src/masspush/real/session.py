@@ -14,7 +14,7 @@ from masspush.learn.policy import model_policy
 from masspush.learn.predictor import load_model
 from masspush.models import resolve_model
 from masspush.real.backends import BACKENDS, RecordedPolicy, make_robot
-from masspush.real.robot import fmt, print_push, run_segments
+from masspush.real.robot import check_geometry, fmt, print_push, run_segments
 from masspush.settings import Setting, get_setting
 from masspush.sim.pushers import PUSHERS
 
@@ -127,6 +127,8 @@ def run_session(config: SessionConfig, say=print) -> list[dict]:
         except ValueError:
             robot.close()
             raise
+        if robot.recording.geometry is not None:
+            check_geometry(meta, robot.recording.geometry)
         policy = RecordedPolicy(robot)
         count = len(robot.recording.episodes) if config.count is None else config.count
         # A replay plays every recorded push unless --pushes asks for fewer.

@@ -6,6 +6,7 @@ arm scene). A new pusher is a module beside these and one entry in `PUSHER_KINDS
 
 from __future__ import annotations
 
+from masspush.config import PhysicsConfig
 from masspush.sim.pushers.arm import ARMS, ArmPusher
 from masspush.sim.pushers.base import Pusher, PusherKind, StepHook
 from masspush.sim.pushers.stiff import StiffPusher, park
@@ -54,6 +55,13 @@ def pusher_kind(name: str) -> PusherKind:
         raise ValueError(f"unknown pusher {name!r}; known pushers: {list(PUSHERS)}") from None
 
 
+def tool_radius(name: str, physics: PhysicsConfig) -> float:
+    """The radius of the pusher's tool where it touches the chain, m: an arm's from its
+    model file, the stiff pusher's from the physics."""
+    pusher = make_pusher(name)
+    return pusher.tool_radius if isinstance(pusher, ArmPusher) else physics.pusher_radius
+
+
 def make_pusher(name: str) -> Pusher:
     """A new pusher called `name`, or a ValueError listing the known ones."""
     return pusher_kind(name).make()
@@ -71,4 +79,5 @@ __all__ = [
     "make_pusher",
     "park",
     "pusher_kind",
+    "tool_radius",
 ]

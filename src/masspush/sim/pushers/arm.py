@@ -184,14 +184,22 @@ class ArmPusher:
         self._stationary_seeds: dict[tuple[int, int], np.ndarray] = {}
 
     # --- scene ------------------------------------------------------------------------
+    @property
+    def tool_radius(self) -> float:
+        """The radius of the tool where it touches the chain (the ball, the dowel), m."""
+        return float(self._spec().geom("ee").size[0])
+
+    def _spec(self) -> mujoco.MjSpec:
+        if self._arm_spec is None:
+            self._arm_spec = mujoco.MjSpec.from_file(str(ASSETS / self.arm.xml))
+        return self._arm_spec
+
     def add_to(self, spec: mujoco.MjSpec, physics: PhysicsConfig) -> None:
         # The arm's file is parsed once per pusher; attaching moves a body out of its spec,
         # so each scene gets a copy (the compiled models are byte-identical to a fresh
         # parse's, and a copy costs a tenth of one).
-        if self._arm_spec is None:
-            self._arm_spec = mujoco.MjSpec.from_file(str(ASSETS / self.arm.xml))
         frame = spec.worldbody.add_frame(pos=ARM_PARK.tolist())
-        frame.attach_body(self._arm_spec.copy().body("base"), self.prefix, "")
+        frame.attach_body(self._spec().copy().body("base"), self.prefix, "")
 
     def _h(self, model: mujoco.MjModel) -> _Handles:
         if self._model is not model:
