@@ -270,3 +270,25 @@ def test_arms_that_follow_the_chain_have_no_joint_speed_limit(arm):
     sim = sim_with(arm)
     outcome = sim.push(np.array([0.4, -0.5]))
     assert sim.pusher.trace.commanded_speed == outcome.push.speed
+
+
+def test_the_shipped_ik_cells_are_the_arms_own_solutions():
+    from masspush.sim.pushers.arm import ik_cell_file
+
+    sim = stationary_sim((0.0, 0.0, 0.0))
+    pusher, height = sim.pusher, sim.physics.link_height / 2
+    pusher.place_base(sim.model, sim.data, pusher.workspace.base[:2], pusher.workspace.base[2])
+    with np.load(ik_cell_file("ur10-stationary")) as table:
+        assert float(table["height"]) == height
+        cells, solutions = table["cells"], table["q"]
+    # Every cell a push inside the workspace falls in (the workspace's distances +- margin,
+    # every direction), each the careful solution in a scene with a chain in it.
+    assert {int(i) for i in cells[:, 0]} >= set(range(6, 23))
+    assert len({int(j) for j in cells[:, 1]}) == 25
+    for k in (0, len(cells) // 2, len(cells) - 1):
+        cell = (int(cells[k, 0]), int(cells[k, 1]))
+        fresh = pusher._cell_solution(sim.model, sim.data, pusher._h(sim.model), cell, height)
+        np.testing.assert_array_equal(fresh, solutions[k])
+    before = len(pusher._cells(height))
+    sim.push(np.array([0.4, 0.3]))
+    assert len(pusher._cells(height)) == before  # a push inside used a shipped cell

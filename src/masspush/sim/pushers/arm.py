@@ -110,6 +110,18 @@ IK_TOLERANCE = 2e-3
 IK_CELL_DISTANCE, IK_CELL_ANGLE = 0.05, math.radians(15)
 """A stationary arm's inverse-kinematics cells: m from the base's axis, rad of push direction
 relative to the bearing (`ArmPusher._ik_stationary`) [ours]."""
+IK_CELL_MARGIN = 0.12
+"""How far beyond the workspace's link centres a push's contact point may lie (half a link
+plus the tool), m: the cells `build_ik_cells` solves [ours]."""
+_CELLS: dict[tuple[str, float], dict[tuple[int, int], np.ndarray]] = {}
+"""Each process's cell solutions, by (arm, push height)."""
+
+
+def ik_cell_file(name: str) -> Path:
+    """Where the cell solutions of a stationary arm ship."""
+    return ASSETS / f"{name}-ik-cells.npz"
+
+
 MIN_LINK_HEIGHT = 0.06
 """Inverse kinematics prefers poses whose arm links all stay this far above the table, m."""
 
@@ -181,7 +193,6 @@ class ArmPusher:
         """The last push's top tip speed along the push, m/s (`Pusher.executed_speed`)."""
         self.workspace = self.arm.workspace
         """Where a stationary base stands and what it reaches; None: the base follows."""
-        self._stationary_seeds: dict[tuple[int, int], np.ndarray] = {}
 
     # --- scene ------------------------------------------------------------------------
     @property
@@ -565,14 +576,10 @@ class ArmPusher:
         bearing = math.atan2(rel[1], rel[0])
         psi = float(wrap_angle(math.atan2(direction[1], direction[0]) - bearing))
         cell = (round(r / IK_CELL_DISTANCE), round(psi / IK_CELL_ANGLE))
-        seed = self._stationary_seeds.get(cell)
+        cells = self._cells(float(touch[2]))
+        seed = cells.get(cell)
         if seed is None:
-            r_c, psi_c = cell[0] * IK_CELL_DISTANCE, cell[1] * IK_CELL_ANGLE
-            axis = np.array([math.cos(byaw), math.sin(byaw), 0.0])
-            d_c = np.array([math.cos(byaw + psi_c), math.sin(byaw + psi_c), 0.0])
-            point = np.array([bx, by, touch[2]]) + r_c * axis - 0.03 * d_c
-            rot = tool_rotation(d_c, self.arm.tool_pitch)
-            seed = self._stationary_seeds[cell] = self._careful_ik(model, data, h, point, rot)
+            seed = cells[cell] = self._cell_solution(model, data, h, cell, float(touch[2]))
         start = seed.copy()
         start[0] += float(wrap_angle(bearing - byaw))
         start = np.clip(start, h.low, h.high)
@@ -582,6 +589,54 @@ class ArmPusher:
             q = self._careful_ik(model, data, h, target, target_r)
             q, error, _ = self._solve_ik(model, data, h, target, target_r, q, 150)
         return q, error
+
+    def _cell_solution(self, model, data, h: _Handles, cell: tuple[int, int], height: float):
+        """The careful solution for a cell's centre (`_ik_stationary`), at bearing 0."""
+        assert self.workspace is not None
+        bx, by, byaw = self.workspace.base
+        r_c, psi_c = cell[0] * IK_CELL_DISTANCE, cell[1] * IK_CELL_ANGLE
+        axis = np.array([math.cos(byaw), math.sin(byaw), 0.0])
+        d_c = np.array([math.cos(byaw + psi_c), math.sin(byaw + psi_c), 0.0])
+        point = np.array([bx, by, height]) + r_c * axis - 0.03 * d_c
+        rot = tool_rotation(d_c, self.arm.tool_pitch)
+        return self._careful_ik(model, data, h, point, rot)
+
+    def _cells(self, height: float) -> dict[tuple[int, int], np.ndarray]:
+        """This process's cell solutions for pushes at `height`: those shipped with the arm
+        (`ik_cell_file`, computed by `build_ik_cells`) where they are for this height, and
+        any others as they are solved."""
+        key = (self.name, height)
+        if key not in _CELLS:
+            _CELLS[key] = {}
+            path = ik_cell_file(self.name)
+            if path.exists():
+                with np.load(path) as table:
+                    if float(table["height"]) == height:
+                        for (i, j), q in zip(table["cells"], table["q"], strict=True):
+                            _CELLS[key][(int(i), int(j))] = q
+        return _CELLS[key]
+
+    def build_ik_cells(self, height: float) -> dict[tuple[int, int], np.ndarray]:
+        """Every cell a push inside the workspace can fall in, solved: the table
+        `ik_cell_file` ships (written by `main`: `python -c "from masspush.sim.pushers.arm
+        import main; main(['ur10-stationary'])"`, 2 min). In a scene of the arm alone: its
+        joints' solutions are those of any scene (tested)."""
+        assert self.workspace is not None
+        spec = mujoco.MjSpec()
+        self.add_to(spec, PhysicsConfig())
+        model = spec.compile()
+        data = mujoco.MjData(model)
+        h = self._h(model)
+        self.place_base(model, data, self.workspace.base[:2], self.workspace.base[2])
+        reach = self.workspace.r_max + IK_CELL_MARGIN
+        rows = range(
+            math.floor((self.workspace.r_min - IK_CELL_MARGIN) / IK_CELL_DISTANCE),
+            math.ceil(reach / IK_CELL_DISTANCE) + 1,
+        )
+        turns = range(-round(math.pi / IK_CELL_ANGLE), round(math.pi / IK_CELL_ANGLE) + 1)
+        return {
+            (i, j): self._cell_solution(model, data, h, (i, j), height) for i in rows for j in turns
+        }
 
     def _careful_ik(self, model, data, h, target, target_r) -> np.ndarray:
         """The best of solutions from 25 seeds (zero and random, fixed), preferring those
@@ -631,3 +686,25 @@ def _in_subtree(model: mujoco.MjModel, body: int, root: int) -> bool:
             return True
         body = int(model.body_parentid[body])
     return False
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Write a stationary arm's inverse-kinematics cells (`ArmPusher.build_ik_cells`) for the
+    default chain's push height into the package's assets."""
+    import sys
+
+    name = (argv if argv is not None else sys.argv[1:])[0]
+    height = PhysicsConfig().link_height / 2
+    cells = ArmPusher(name).build_ik_cells(height)
+    keys = sorted(cells)
+    np.savez(
+        ik_cell_file(name),
+        height=height,
+        cells=np.array(keys, np.int64),
+        q=np.array([cells[k] for k in keys]),
+    )
+    print(f"{ik_cell_file(name)}: {len(keys)} cells")
+
+
+if __name__ == "__main__":
+    main()
