@@ -292,3 +292,23 @@ def test_the_shipped_ik_cells_are_the_arms_own_solutions():
     before = len(pusher._cells(height))
     sim.push(np.array([0.4, 0.3]))
     assert len(pusher._cells(height)) == before  # a push inside used a shipped cell
+
+
+def test_a_push_near_a_singular_pose_is_unreachable_not_endless(monkeypatch):
+    # Joint speed limits that leave a push a thousandth of its speed: the arm cannot make it
+    # (before this rule, its run-up would have taken hours of simulated time).
+    pusher = make_pusher("ur10-stationary")
+    monkeypatch.setattr(pusher, "_speed_within_joint_limits", lambda *a: a[-1] * 1e-3)
+    sim = stationary_sim((0.0, 0.0, 0.3), pusher=pusher)
+    outcome = sim.push(np.array([0.8, 0.3]))
+    assert outcome.failure == "unreachable" and outcome.steps == 0
+
+
+def test_a_slowed_push_runs_up_for_the_speed_it_will_have():
+    sim = stationary_sim((0.0, 0.0, 0.3))
+    sim.push(np.array([1.0, 0.3]))
+    trace = sim.pusher.trace
+    assert trace.commanded_speed < 5.0
+    # STANDOFF_TIME (30 ms) of travel at the slowed speed, plus the ~30 ms the arm takes to
+    # reach it from rest; a run-up for the commanded 5 m/s (15 cm) would take over 90 steps.
+    assert 30 <= trace.contact_step <= 60

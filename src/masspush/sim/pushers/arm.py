@@ -102,6 +102,9 @@ ARMS = {
         joint_speed_limit=UR10_JOINT_SPEED,
     ),
 }
+MIN_SPEED_SCALE = 0.05
+"""A push whose joint speed limits leave it less than this fraction of its commanded speed is
+'unreachable': the arm is near a singular pose for it (a controller would stop) [ours]."""
 HOLD_TRAVEL = 0.02
 """How far past the face a push's tip is taken to travel during the hold, m (for the joint
 speed limits) [ours: 10 ms at 2 m/s]."""
@@ -286,7 +289,24 @@ class ArmPusher:
         else:
             self.place_base(model, data, self.workspace.base[:2], self.workspace.base[2])
             q, error = self._ik_stationary(model, data, h, standoff, target_r, touch, direction)
+        speed = push.speed
+        if error <= IK_TOLERANCE and self.arm.joint_speed_limit is not None:
+            # Where the run-up starts, and where the hold ends (a push moves the tip ~1 cm
+            # past the face): the joint rates a tip speed needs change along the way.
+            end = touch + HOLD_TRAVEL * direction
+            q_end, _, _ = self._solve_ik(model, data, h, end, target_r, q, 50)
+            speed = min(
+                self._speed_within_joint_limits(model, data, h, qq, direction, speed)
+                for qq in (q, q_end)
+            )
+            if speed < MIN_SPEED_SCALE * push.speed:
+                error = math.inf  # near a singular pose: this push cannot be made from here
+            elif speed < push.speed:  # the run-up for the speed the arm will move at
+                run_up = min(speed * STANDOFF_TIME, self.arm.max_standoff)
+                standoff = touch - direction * run_up
+                q, error, _ = self._solve_ik(model, data, h, standoff, target_r, q, 150)
         self.trace.ik_error = error
+        self.trace.commanded_speed = speed
         if error > IK_TOLERANCE:
             self.park(model, data)
             return "unreachable"
@@ -297,17 +317,6 @@ class ArmPusher:
         dt = model.opt.timestep
         hold = physics.push_steps[1]
         # A torque-limited arm may be slower than commanded: allow it twice the time.
-        speed = push.speed
-        if self.arm.joint_speed_limit is not None:
-            # Where the run-up starts, and where the hold ends (a push moves the tip ~1 cm
-            # past the face): the joint rates a tip speed needs change along the way.
-            end = touch + HOLD_TRAVEL * direction
-            q_end, _, _ = self._solve_ik(model, data, h, end, target_r, q, 50)
-            speed = min(
-                self._speed_within_joint_limits(model, data, h, qq, direction, speed)
-                for qq in (q, q_end)
-            )
-        self.trace.commanded_speed = speed
         to_face = run_up + physics.pusher_clearance
         deadline = math.ceil((2 * to_face / speed + 0.05) / dt)
         velocity = np.concatenate([direction * speed, np.zeros(3)])
