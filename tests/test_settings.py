@@ -33,7 +33,7 @@ def test_each_setting_names_its_pusher():
 def test_the_real_setup_is_a_setting_of_its_own():
     # The paper's UR10 experiment: 2 links of 0.01-0.3 kg; not one of Table 1's six.
     s = get_setting("real-ur10")
-    assert (s.n_links, s.mass_range, s.pusher) == (2, (0.01, 0.3), "ur10")
+    assert (s.n_links, s.mass_range, s.pusher) == (2, (0.01, 0.3), "ur10-stationary")
     assert "real-ur10" not in SETTINGS
     assert abs(s.physics().joint_limit - 1.5708) < 0.03
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from masspush.learn.predictor import FAST
+from masspush.learn.predictor import FAST, load_model
 from masspush.learn.recipe import Recipe, RecipeConfig
 from masspush.models import ship, shipped_file
 from masspush.reports.baselines import (
@@ -67,8 +67,14 @@ def train_setting(job: TrainJob, recipe: RecipeConfig, log=print) -> list[str]:
 
 
 def ship_recipe(run: Recipe) -> list[Path]:
-    """Ship a finished recipe's TP and TP+ (and its predictor-0 as RP where none is shipped)."""
-    has_rp = shipped_file(run.setting.name, "rp").exists()
+    """Ship a finished recipe's TP and TP+, and its predictor-0 as RP where none is shipped
+    for this setting and pusher (none at all, or one of another pusher or setting's physics:
+    an RP of another world would not be the baseline of these)."""
+    rp = shipped_file(run.setting.name, "rp")
+    has_rp = False
+    if rp.exists():
+        meta = load_model(rp)[1]
+        has_rp = meta.get("pusher") == run.pusher and meta.get("setting") == run.setting.as_dict()
     return ship(run.setting.name, run.exports(shipped_rp=has_rp))
 
 
