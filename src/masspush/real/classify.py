@@ -3,7 +3,7 @@ recording of labelled episodes (`masspush.real.finetune` holds the classifier it
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -21,7 +21,7 @@ from masspush.real.finetune import (
     labelled,
     load_classifier,
     save_classifier,
-    start_pose_features,
+    start_pose_control,
 )
 from masspush.real.robot import check_geometry
 from masspush.settings import get_setting
@@ -71,9 +71,7 @@ def finetune(job: FinetuneJob, config: ClassifierConfig) -> list[str]:
     labels, classes = labelled(recording)
     features, owner = classifier_inputs(predictor, episodes, config)
     scores = cross_validate(features, labels, len(classes), config, owner)
-    control = cross_validate(
-        start_pose_features(episodes), labels, len(classes), replace(config, segment=0)
-    )
+    control = start_pose_control(episodes, labels, len(classes), config)
     lines = [
         f"{len(labels)} episodes, {len(classes)} classes: {config.folds}-fold cross-validated "
         f"accuracy {100 * scores['accuracy']:.1f} % (chance {100 * scores['chance']:.1f} %)",

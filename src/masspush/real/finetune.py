@@ -19,7 +19,7 @@ from __future__ import annotations
 import os
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -195,6 +195,15 @@ def start_pose_features(episodes: Episodes) -> np.ndarray:
     return np.concatenate(
         [q0[:, :2], np.cos(yaw), np.sin(yaw), q0[:, 3:], episodes.lengths], axis=1
     ).astype(np.float32)
+
+
+def start_pose_control(
+    episodes: Episodes, labels: np.ndarray, n_classes: int, config: ClassifierConfig
+) -> dict[str, Any]:
+    """The control: `cross_validate` of the same classifier on `start_pose_features` alone
+    (one row per episode, whatever `config.segment` says of the pushes)."""
+    control = replace(config, segment=0)
+    return cross_validate(start_pose_features(episodes), labels, n_classes, control)
 
 
 FEATURE_CHUNK = 16_384

@@ -31,7 +31,7 @@ from masspush.real.finetune import (
     first_pushes,
     labelled,
     predictor_features,
-    start_pose_features,
+    start_pose_control,
 )
 from masspush.sim.simulate import REACH_FAILURES
 
@@ -262,9 +262,8 @@ def score_arm(config: Sim2RealConfig, arm: str, path: Path) -> dict[str, Any]:
         scores[kind] = score(episodes, kind)
     # The control: the start pose alone. Above chance only if which episodes were kept
     # depends on the class.
-    control = replace(config.classifier, segment=0)
-    scores["start_pose_control"] = cross_validate(
-        start_pose_features(episodes), labels, len(classes), control
+    scores["start_pose_control"] = start_pose_control(
+        episodes, labels, len(classes), config.classifier
     )
     # Without any fine-tuning: how far the simulation-trained estimate is from the truth.
     estimate = np.exp(predictor_features(predictor, episodes, "estimate", segment))
