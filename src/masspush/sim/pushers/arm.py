@@ -372,9 +372,7 @@ class ArmPusher:
         joint_rates = np.linalg.solve(
             self._jacobian(model, data, h), np.concatenate([direction * speed, np.zeros(3)])
         )
-        data.qpos[h.qadr] = saved
-        mujoco.mj_kinematics(model, data)
-        mujoco.mj_comPos(model, data)
+        data.qpos[h.qadr] = saved  # as `_solve_ik`: the next step recomputes the rest
         limit = np.asarray(self.arm.joint_speed_limit)
         return speed * min(1.0, float(np.min(limit / np.maximum(np.abs(joint_rates), 1e-12))))
 
