@@ -32,7 +32,9 @@ def test_controller_reaches_a_target_pose(arm):
     base = np.array([2.0, 2.0])  # away from the chain
     pusher.place_base(sim.model, sim.data, base, 0.0)
     start = np.array([base[0] + pusher.arm.base_distance - 0.05, base[1], 0.05])
-    q, error = pusher._ik(sim.model, sim.data, pusher._h(sim.model), start, target_r, start)
+    touch = start + 0.03 * direction  # the IK starts from the pose 3 cm before the face
+    q, error = pusher._ik(sim.model, sim.data, pusher._h(sim.model), start, target_r, touch,
+                          direction)  # fmt: skip
     assert error < 1e-3
     sim.data.qpos[pusher._h(sim.model).qadr] = q
     # Move 4 cm sideways and 3 cm up, with a 10 degree turn, from rest.
@@ -312,3 +314,16 @@ def test_a_slowed_push_runs_up_for_the_speed_it_will_have():
     # STANDOFF_TIME (30 ms) of travel at the slowed speed, plus the ~30 ms the arm takes to
     # reach it from rest; a run-up for the commanded 5 m/s (15 cm) would take over 90 steps.
     assert 30 <= trace.contact_step <= 60
+
+
+@pytest.mark.slow
+def test_an_arm_episode_does_not_depend_on_the_episodes_before_it():
+    # The following arm's inverse kinematics starts from one solution of the geometry alone:
+    # episodes split over workers in any way give the same rest poses, to the bit.
+    from masspush.data.rollout import TRAIN, RandomPolicy, run_env
+    from masspush.settings import get_setting
+
+    config = get_setting("3link-0.1-1").env_config("kuka")
+    after = run_env(config, RandomPolicy(), np.array([150, 151, 152, 176]), TRAIN, 0)
+    alone = run_env(config, RandomPolicy(), np.array([176]), TRAIN, 0)
+    np.testing.assert_array_equal(after.configs[-1], alone.configs[0])

@@ -186,7 +186,8 @@ class ArmPusher:
         self._on_step: StepHook | None = None
         self._model: mujoco.MjModel | None = None  # the model the handles belong to
         self._handles: _Handles | None = None
-        self._reference_q: np.ndarray | None = None
+        self._reference_qs: dict[tuple[float, float], np.ndarray] = {}
+        """The IK's start for a following base, by (reach, height) of its pose (`_ik`)."""
         self._compiled: tuple | None = None
         self._arm_spec: mujoco.MjSpec | None = None
         self.use_compiled = True
@@ -285,7 +286,7 @@ class ArmPusher:
             yaw = math.atan2(direction[1], direction[0])
             self.place_base(model, data, contact - direction * self.arm.base_distance, yaw)
             # 2. Tip at the standoff point, at rest.
-            q, error = self._ik(model, data, h, standoff, target_r, touch - 0.03 * direction)
+            q, error = self._ik(model, data, h, standoff, target_r, touch, direction)
         else:
             self.place_base(model, data, self.workspace.base[:2], self.workspace.base[2])
             q, error = self._ik_stationary(model, data, h, standoff, target_r, touch, direction)
@@ -545,18 +546,29 @@ class ArmPusher:
         h: _Handles,
         target: np.ndarray,
         target_r: np.ndarray,
-        reference_target: np.ndarray,
+        touch: np.ndarray,
+        direction: np.ndarray,
     ) -> tuple[np.ndarray, float]:
         """Joint angles that put the tip at `target` with orientation `target_r`, and the
         remaining error (position in m plus 0.1 m per radian of orientation).
 
-        `reference_target` is the same pose 3 cm before the face: the first call solves it
-        carefully once, and every later solve starts from that solution."""
-        if self._reference_q is None:
-            # Every push asks for nearly the same pose relative to the base, so one careful
-            # solution from several seeds, elbow above the table, starts all later ones.
-            self._reference_q = self._careful_ik(model, data, h, reference_target, target_r)
-        q, error, _ = self._solve_ik(model, data, h, target, target_r, self._reference_q, 150)
+        Every push asks for nearly the same pose relative to the base: the tip 3 cm before
+        the face at `touch`. One careful solution of that pose from several seeds, elbow
+        above the table, starts every solve. It is solved with the base at the origin,
+        facing +x, so that it depends on the geometry alone: solved at the first push's
+        base instead, it would carry that push's rounding into every later push, and an
+        episode would depend on which episodes ran before it in the same process."""
+        # (reach, height) of that pose from the base, rounded off the push's own rounding.
+        reach = float(np.linalg.norm(touch[:2] - data.mocap_pos[h.mocap, :2])) - 0.03
+        key = (round(reach, 9), round(float(touch[2]), 9))
+        if key not in self._reference_qs:
+            pos, quat = data.mocap_pos[h.mocap].copy(), data.mocap_quat[h.mocap].copy()
+            self.place_base(model, data, (0.0, 0.0), 0.0)
+            facing = tool_rotation(np.array([1.0, 0.0, 0.0]), self.arm.tool_pitch)
+            start = self._careful_ik(model, data, h, np.array([key[0], 0.0, key[1]]), facing)
+            data.mocap_pos[h.mocap], data.mocap_quat[h.mocap] = pos, quat
+            self._reference_qs[key] = start
+        q, error, _ = self._solve_ik(model, data, h, target, target_r, self._reference_qs[key], 150)
         return q, error
 
     def _ik_stationary(
