@@ -3,6 +3,7 @@ PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-$(shell cksum < pyproject.toml | cut -d' ' -f1)
+RAY_STAMP := $(VENV)/.ray-$(shell cksum < pyproject.toml | cut -d' ' -f1)
 
 .PHONY: demo test test-fast lint bench clean
 
@@ -17,13 +18,18 @@ $(STAMP): pyproject.toml
 	$(PY) -c 'import masspush.sim.pushers.compiled as c; c.main()'
 	rm -f $(VENV)/.installed-* && touch $(STAMP)
 
+# The tests also run the Ray paths (`--ray`) on a local cluster: the extra, for them only.
+$(RAY_STAMP): $(STAMP)
+	$(PY) -m pip install --quiet -e '.[dev,ray]'
+	rm -f $(VENV)/.ray-* && touch $(RAY_STAMP)
+
 demo: $(STAMP)
 	$(VENV)/bin/masspush demo
 
-test: $(STAMP)
+test: $(RAY_STAMP)
 	$(PY) -m pytest -q
 
-test-fast: $(STAMP)
+test-fast: $(RAY_STAMP)
 	$(PY) -m pytest -q -m "not slow"
 
 lint: $(STAMP)

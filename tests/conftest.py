@@ -53,3 +53,39 @@ def model_file(tmp_path_factory):
     path = tmp_path_factory.mktemp("m") / "model.pt"
     save_model(path, model, {"setting": setting.as_dict(), "pusher": "stiff", "policy": "random"})
     return path
+
+
+class SerialPool:
+    """A `TaskPool` that runs its tasks here, in reverse order (a cluster returns them in
+    any order): the driver-side logic of the pool path without a cluster. `stop_after`
+    interrupts the run after that many results, as a killed driver would."""
+
+    def __init__(self, size: int = 2, stop_after: int | None = None):
+        self.size, self.stop_after, self.tasks = size, stop_after, 0
+
+    def imap(self, fn, jobs, shared=None, desc=None):
+        import pickle
+
+        shared = pickle.loads(pickle.dumps(shared))  # what travels to a worker is a copy
+        for i in reversed(range(len(jobs))):
+            if self.stop_after is not None and self.tasks >= self.stop_after:
+                raise KeyboardInterrupt
+            self.tasks += 1
+            yield i, fn(shared, jobs[i])
+
+
+@pytest.fixture
+def serial_pool():
+    return SerialPool
+
+
+@pytest.fixture(scope="session")
+def ray_cluster():
+    """A local Ray cluster of two CPUs for the session, as `--ray local` starts one; this
+    process stays connected, so `open_pool(...)` and `connect(...)` reuse it."""
+    ray = pytest.importorskip("ray")
+    import logging
+
+    ray.init(address="local", num_cpus=2, include_dashboard=False, logging_level=logging.ERROR)
+    yield "local"
+    ray.shutdown()

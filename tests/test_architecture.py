@@ -20,6 +20,7 @@ REPO = SRC.parents[1]
 # each other's code.
 LAYERS = [
     ("masspush.config", "masspush.metrics", "masspush._exports", "masspush._compat"),
+    ("masspush.cluster",),
     ("masspush.sim",),
     ("masspush.settings", "masspush.env"),
     ("masspush.data",),

@@ -1,3 +1,4 @@
+import dataclasses
 import json
 import subprocess
 import sys
@@ -100,3 +101,12 @@ def test_the_cli_pairs_an_evaluation_with_an_earlier_one(model_file, tmp_path, c
     bare.write_text(json.dumps({"model": "x"}))
     assert main([*args, "--paired-with", str(bare)]) == 2
     assert "no per-episode record" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_an_evaluation_on_a_ray_cluster_gives_the_same_numbers(model_file, ray_cluster):
+    config = EvaluateConfig("2link-0.1-1", str(model_file), episodes=30, seed=3,
+                            per_episode=True)  # fmt: skip
+    here = evaluate_model(config).to_dict()
+    on_ray = evaluate_model(dataclasses.replace(config, ray=ray_cluster)).to_dict()
+    assert on_ray == here

@@ -18,6 +18,7 @@ from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
+from masspush.cluster.pool import Workers, check_address
 from masspush.config import EnvConfig, check_input, check_int
 from masspush.metrics import (
     all_metrics,
@@ -44,7 +45,10 @@ class EvaluateConfig:
     pusher: str | None = None
     """The pusher (default: the one the model was trained with; the filter: the setting's)."""
     workers: int | None = None
-    """Processes for an arm (default: one per core)."""
+    """Processes for an arm (default: one per core); with --ray local, the CPUs of the
+    cluster started for the run."""
+    ray: str | None = None
+    """Run the episodes on a Ray cluster: auto, local, ray://HOST:PORT or HOST:PORT."""
     per_episode: bool = False
     """Record each scored episode's estimate and truth, for a later --paired-with (the particle
     filter always does)."""
@@ -69,6 +73,7 @@ class EvaluateConfig:
             )
         check_int("seed", self.seed, 0)
         check_int("workers", self.workers, optional=True)
+        check_address(self.ray)
         if self.paired_with is not None:
             check_input(self.paired_with, "paired_with")
 
@@ -105,9 +110,11 @@ class Estimator(Protocol):
     # (for an estimator whose runs are too costly to repeat for a later pairing).
 
     def run(
-        self, env_config: EnvConfig, indices: np.ndarray, seed: int, workers: int | None
+        self, env_config: EnvConfig, indices: np.ndarray, seed: int, workers: Workers
     ) -> EstimatorRun:
-        """Episodes `indices` of the EVAL stream of base seed `seed`, in `env_config`."""
+        """Episodes `indices` of the EVAL stream of base seed `seed`, in `env_config`;
+        `workers`: local processes, or a `masspush.cluster.pool.TaskPool` (a cluster) to
+        run them on, with the same result."""
 
 
 @dataclass
@@ -172,7 +179,7 @@ def evaluate(
     estimator: Estimator,
     episodes: int = 800,
     seed: int = 0,
-    workers: int | None = None,
+    workers: Workers = None,
     per_episode: bool = False,
 ) -> EvalResult:
     """Run `episodes` fresh episodes of `setting` with `estimator` and score them.

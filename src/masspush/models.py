@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from masspush.bayes.estimator import BAYES_MODELS, BayesEstimator
+from masspush.cluster.pool import open_pool
 from masspush.config import check_match, check_output
 from masspush.evaluate import Estimator, EvalResult, EvaluateConfig, evaluate
 from masspush.learn.estimator import PredictorEstimator
@@ -139,10 +140,11 @@ def evaluate_model(
     estimator = load_estimator(
         config.model, spec, config.pusher, bayes, progress, config.allow_mismatch
     )
-    result = evaluate(
-        spec, estimator, config.episodes, config.seed, config.workers,
-        per_episode=config.per_episode or other is not None,
-    )  # fmt: skip
+    with open_pool(config.ray, config.workers) as workers:
+        result = evaluate(
+            spec, estimator, config.episodes, config.seed, workers,
+            per_episode=config.per_episode or other is not None,
+        )  # fmt: skip
     if other is not None:
         result.pair_with(other)
     return result

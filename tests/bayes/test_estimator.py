@@ -35,3 +35,35 @@ def test_information_seeking_beats_random_pushes_and_intervals_cover():
     seeking = evaluate_bayes(SETTING, "bayes", episodes=16, config=config)
     assert seeking["percentage_error"] < random["percentage_error"], (seeking, random)
     assert 0.7 <= seeking["coverage"] <= 1.0 and 0.7 <= random["coverage"] <= 1.0
+
+
+def bayes_run(indices, workers=None, model="bayes"):
+    import numpy as np
+
+    estimator = BayesEstimator(SETTING, model, config=SMALL, progress=False)
+    return estimator.run(SETTING.env_config("stiff"), np.asarray(indices), 4, workers)
+
+
+@pytest.mark.slow
+def test_an_episode_estimate_does_not_depend_on_the_episodes_before_it():
+    import numpy as np
+
+    alone = bayes_run([2, 3])
+    after_others = bayes_run([0, 1, 2, 3])
+    keep = np.isin(after_others.index, [2, 3])
+    np.testing.assert_array_equal(after_others.estimates[keep], alone.estimates)
+
+
+@pytest.mark.slow
+def test_the_filter_on_a_pool_gives_the_run_it_gives_here(serial_pool):
+    import numpy as np
+
+    here = bayes_run(range(5), model="bayes-random")
+    pooled = bayes_run(range(5), workers=serial_pool(size=2), model="bayes-random")
+    np.testing.assert_array_equal(pooled.index, here.index)
+    np.testing.assert_array_equal(pooled.estimates, here.estimates)
+    assert pooled.failures == here.failures
+    timing = "seconds_per_episode"
+    assert {k: v for k, v in pooled.extra.items() if k != timing} == {
+        k: v for k, v in here.extra.items() if k != timing
+    }

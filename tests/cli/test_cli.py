@@ -104,3 +104,21 @@ def test_run_on_one_lab_of_the_target_world_records_it(tmp_path, capsys):
     assert len(episodes) == 2 and episodes[0]["lengths"].tolist() == episodes[1]["lengths"].tolist()
     assert main(["run", "--robot", "stiff", "--setting", "2link-1-10", "--lab", "1"]) == 2
     assert "lab" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["collect", "--setting", "2link-1-10", "--episodes", "5", "--out", "unused"],
+        ["evaluate", "--setting", "2link-1-10", "--model", "rp"],
+        ["baselines", "--setting", "2link-1-10"],
+        ["train", "--setting", "2link-1-10"],
+        ["bayes-table"],
+        ["sim2real"],
+    ],
+)
+def test_every_command_that_scales_out_takes_ray_and_checks_its_address(command, capsys):
+    assert main([*command, "--ray", "nowhere"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0
+    assert f"masspush {command[0]}: error: ray must be auto, local, ray://HOST:PORT" in err

@@ -63,6 +63,8 @@ CASES: dict[str, list[list[str]]] = {
     "bench arm": [["--links", "1"], ["--arm", "stiff"], ["--arm", "nope"], ["--episodes", "0"],
                   ["--check-pushes", "0"], ["--links", "65"], ["--seed", "-1"]],
     "bench data": [["--episodes", "-1"], ["--pusher", "nope"], ["--workers", "0"]],
+    "bench ray": [["--episodes", "0"], ["--pusher", "nope"], ["--cpus", "0"], ["--cpus", ""],
+                  ["--setting", "nope"], ["--shard-size", "0"]],
     "bench train": [["--episodes", "0"], ["--steps", "0"]],
     "bench ppo": [["--steps", "0"], ["--envs", "0"], ["--pusher", "nope"]],
     "bench motion": [["--data", "MISSING"], ["--episodes", "0"]],

@@ -161,3 +161,41 @@ def test_a_collection_larger_than_the_disk_is_refused_before_work(tmp_path, monk
     monkeypatch.setattr(dataset, "run_episodes", lambda *_: pytest.fail("started work"))
     with pytest.raises(OSError, match=r"need about .* GB .* are free"):
         small(tmp_path / "d")
+
+
+def shard_bytes(root) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted(root.glob("shard-*.npz"))}
+
+
+@pytest.mark.parametrize("episodes", [30, 7])  # three shards; fewer shards than workers
+def test_a_collection_on_a_pool_writes_the_same_shards_byte_for_byte(
+    tmp_path, serial_pool, episodes
+):
+    small(tmp_path / "here", episodes=episodes)
+    pool = serial_pool(size=2)
+    small(tmp_path / "pool", episodes=episodes, workers=pool)
+    assert shard_bytes(tmp_path / "pool") == shard_bytes(tmp_path / "here")
+    # Few shards are split into chunks of episodes, so every worker has work.
+    assert pool.tasks > -(-episodes // 10)
+
+
+def test_a_collection_on_a_pool_stopped_midway_resumes_to_the_same_shards(
+    tmp_path, serial_pool
+):
+    small(tmp_path / "here", episodes=40)
+    with pytest.raises(KeyboardInterrupt):
+        small(tmp_path / "pool", episodes=40, workers=serial_pool(stop_after=5))
+    written = len(shard_bytes(tmp_path / "pool"))
+    assert 1 <= written < 4
+    small(tmp_path / "pool", episodes=40, workers=serial_pool())
+    assert shard_bytes(tmp_path / "pool") == shard_bytes(tmp_path / "here")
+
+
+@pytest.mark.slow
+def test_a_collection_on_a_ray_cluster_is_byte_identical(tmp_path, ray_cluster):
+    from masspush.cluster.pool import open_pool
+
+    small(tmp_path / "here", episodes=30)
+    with open_pool(ray_cluster) as pool:
+        small(tmp_path / "ray", episodes=30, workers=pool)
+    assert shard_bytes(tmp_path / "ray") == shard_bytes(tmp_path / "here")

@@ -53,3 +53,15 @@ def test_episodes_select_and_concatenate():
     both = Episodes.concatenate([eps.select(eps.index < 3), eps.select(eps.index >= 3)])
     np.testing.assert_array_equal(both.observations, eps.observations)
     np.testing.assert_allclose(eps.mass_distribution.sum(1), 1.0, rtol=1e-6)
+
+
+@pytest.mark.parametrize("pusher", ["stiff", "kuka"])
+def test_episodes_on_a_pool_are_the_episodes_run_here(serial_pool, pusher):
+    from masspush.data.rollout import run_episodes
+
+    config = EnvConfig(physics=PhysicsConfig(n_links=2), pusher=pusher)
+    idx = np.arange(3, 9 if pusher == "kuka" else 20)
+    here = run_episodes(config, RandomPolicy(), idx, EVAL, 2, workers=1)
+    pooled = run_episodes(config, RandomPolicy(), idx, EVAL, 2, workers=serial_pool(size=2))
+    for name in ("index", "observations", "configs", "actions", "executed", "failure"):
+        np.testing.assert_array_equal(getattr(pooled, name), getattr(here, name))

@@ -112,3 +112,25 @@ def test_bad_recipe_configs_are_refused():
     assert RecipeConfig().episodes(2) == (16_000, 8_000, 16_000)
     assert RecipeConfig().episodes(3) == (32_000, 16_000, 32_000)
     assert np.isclose(TINY.policy.rollout_steps, 16)
+
+
+@pytest.mark.slow
+def test_the_recipe_runs_its_collections_and_evaluations_on_a_pool(tmp_path, serial_pool):
+    from masspush.data.dataset import collect
+    from masspush.evaluate import evaluate
+    from masspush.learn.estimator import PredictorEstimator
+
+    small = replace(
+        TINY, meta_iterations=1, first_episodes=300, eval_episodes=60,
+        predictor=replace(PREDICTOR, steps=100, batch_size=64, eval_every=50),
+    )  # fmt: skip
+    pool = serial_pool(size=2)
+    run = Recipe(SETTING, "stiff", tmp_path / "run", small, progress=False, workers=pool)
+    state = run.run()
+    assert pool.tasks > 0
+    collect(SETTING, tmp_path / "here", episodes=300, pusher="stiff", base_seed=0,
+            progress=False)  # fmt: skip
+    for shard in (tmp_path / "here").glob("shard-*.npz"):
+        assert (tmp_path / "run" / "data-0" / shard.name).read_bytes() == shard.read_bytes()
+    here = evaluate(SETTING, PredictorEstimator.from_file(run.predictor(0), SETTING.name), 60)
+    assert state["history"][0]["percentage_error"] == here.percentage_error

@@ -275,3 +275,17 @@ def test_the_summary_reports_losses_and_the_start_pose_control(run):
             assert arm[kind]["accuracy_attempted"] <= arm[kind]["accuracy"]
     table = (out / "summary.md").read_text()
     assert "start-pose control" in table and "lost the chain" in table
+
+
+@pytest.mark.slow
+def test_the_classes_recorded_on_a_pool_are_the_classes_recorded_here(serial_pool):
+    from masspush.models import model_and_policy
+    from masspush.real.sim2real import record_classes
+
+    predictor, _, policy = model_and_policy("tp+", "2link-1-10")
+    here = record_classes(CONFIG, predictor, policy, "t", progress=False)
+    pooled = record_classes(CONFIG, predictor, policy, "t", workers=serial_pool(size=5))
+    assert pooled[1:] == here[1:]  # failures and each class's tally
+    assert json.dumps(pooled[0].episodes, default=str) == json.dumps(
+        here[0].episodes, default=str
+    )

@@ -3,7 +3,7 @@ from masspush.reports.bayes_table import bayes_table, filter_settings
 
 
 def fake_evaluate(calls):
-    def run_model(setting, model, episodes, seed=0, per_episode=False):
+    def run_model(setting, model, episodes, seed=0, per_episode=False, workers=None):
         calls.append((setting, model, episodes))
         result = {"percentage_error": 3.0 if model == "bayes" else 5.0, "coverage": 0.9,
                   "seconds_per_episode": 4.2, "episodes": episodes,

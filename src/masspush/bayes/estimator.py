@@ -3,6 +3,7 @@ setting's pusher, with information-seeking or random pushes, estimated push by p
 
 from __future__ import annotations
 
+import copy
 import time
 import warnings
 from dataclasses import replace
@@ -18,6 +19,7 @@ from masspush.bayes.filter import (
     default_config,
     filter_for,
 )
+from masspush.cluster.pool import Workers, gather, is_pool, split
 from masspush.config import EnvConfig
 from masspush.data.rollout import EVAL, episode_seed
 from masspush.env import ChainEnv
@@ -41,7 +43,9 @@ def run_bayes_episode(
               "failure": info["failure"]}  # fmt: skip
     if info["failure"] is not None:
         return result
-    filt.reset(obs[d:])
+    filt.reset(obs[d:], episode=seed)
+    if hasattr(policy, "reset"):  # a policy with randomness restarts it from the episode's
+        policy.reset(seed)
     rng = np.random.default_rng([seed, 1])  # the paper's random policy's stream
     start = obs[:d].astype(float)
     for _ in range(pushes):
@@ -89,47 +93,82 @@ class BayesEstimator:
         self.model_file = None
 
     def run(
-        self, env_config: EnvConfig, indices: np.ndarray, seed: int, workers: int | None
+        self, env_config: EnvConfig, indices: np.ndarray, seed: int, workers: Workers
     ) -> EstimatorRun:
+        """The episodes here, one after the other; or, with a `TaskPool` as `workers` (a Ray
+        cluster), in chunks on its workers: each episode's estimate depends only on its
+        seed, so the result is the same."""
+        indices = np.asarray(indices)
+        start = time.perf_counter()
+        if is_pool(workers):
+            chunks = split(indices, workers)
+            label = f"{self.name} on {self.setting.name}"
+            shared = (self, env_config, seed)
+            parts = gather(workers.imap(_chunk_task, chunks, shared, label), len(chunks))
+        else:
+            parts = [self.run_chunk(env_config, indices, seed, self.progress)]
+        seconds = (time.perf_counter() - start) / max(len(indices), 1)
+        return self._finish(parts, env_config, seconds)
+
+    def run_chunk(
+        self, env_config: EnvConfig, indices: np.ndarray, seed: int, progress: bool = False
+    ) -> dict:
+        """The raw results of episodes `indices` (what `_finish` turns into a run)."""
         env = ChainEnv.from_config(env_config)
         filt = filter_for(self.setting, self.pusher, self.config, seed)
         policy = InfoSeekingPolicy(filt, seed) if self.seeking else None
         k = env_config.pushes
-        estimates, means, truths, inside, failures, unexplained = [], [], [], [], 0, 0
-        scored = []
-        start = time.perf_counter()
+        out: dict = {"index": [], "estimates": [], "means": [], "truths": [], "inside": [],
+                     "failures": 0, "unexplained": 0}  # fmt: skip
         label = f"{self.name} on {self.setting.name}"
-        for i in tqdm(indices, desc=label, disable=not self.progress):
+        for i in tqdm(indices, desc=label, disable=not progress):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", UnexplainedObservationWarning)
                 result = run_bayes_episode(env, filt, policy, episode_seed(EVAL, seed, int(i)), k)
-            unexplained += filt.warnings
+            out["unexplained"] += filt.warnings
             if result["failure"] is not None or len(result["posteriors"]) < k:
-                failures += 1  # left out of the metric, as the learned models' failures are
+                out["failures"] += 1  # left out of the metric, as the learned models' are
                 continue
-            scored.append(int(i))
-            truths.append(result["truth"])
-            estimates.append(np.array([p.estimate for p in result["posteriors"]]))
-            means.append(result["posteriors"][-1].mean)
             last = result["posteriors"][-1]
-            inside.append((last.low <= result["truth"]) & (result["truth"] <= last.high))
-        seconds = (time.perf_counter() - start) / max(len(indices), 1)
+            out["index"].append(int(i))
+            out["truths"].append(result["truth"])
+            out["estimates"].append(np.array([p.estimate for p in result["posteriors"]]))
+            out["means"].append(last.mean)
+            out["inside"].append((last.low <= result["truth"]) & (result["truth"] <= last.high))
+        out["filter"] = filt.settings()
         filt.close()
+        return out
+
+    def _finish(self, parts: list[dict], env_config: EnvConfig, seconds: float) -> EstimatorRun:
+        k = env_config.pushes
+        failures = sum(p["failures"] for p in parts)
+        estimates = [e for p in parts for e in p["estimates"]]
         if not estimates:
             return EstimatorRun(np.empty(0, int), np.empty((0, k, 0)), np.empty((0, 0)), failures)
-        truth = np.array(truths)
+        truth = np.array([t for p in parts for t in p["truths"]])
+        means = np.array([m for p in parts for m in p["means"]])
+        inside = [v for p in parts for v in p["inside"]]
         return EstimatorRun(
-            index=np.array(scored),
+            index=np.array([i for p in parts for i in p["index"]]),
             estimates=np.array(estimates),
             truth=truth,
             failures=failures,
             extra={
                 # The other point estimate's error, for the record (BayesConfig.point).
-                "percentage_error_of_posterior_mean": percentage_error(np.array(means), truth),
+                "percentage_error_of_posterior_mean": percentage_error(means, truth),
                 "coverage": float(np.mean(inside)),
-                "credible": filt.config.credible,
-                "filter": filt.settings(),
+                "credible": self.config.credible,
+                # As configured here (a worker's own thread count is not the run's).
+                "filter": {**parts[0]["filter"], "nthread": self.config.nthread},
                 "seconds_per_episode": seconds,
-                "unexplained_observations": unexplained,
+                "unexplained_observations": sum(p["unexplained"] for p in parts),
             },
         )
+
+
+def _chunk_task(shared: tuple, indices: np.ndarray) -> dict:
+    """One chunk of episodes on a pool's worker, the filter on the worker's one thread."""
+    estimator, env_config, seed = shared
+    one_thread = copy.copy(estimator)
+    one_thread.config = replace(estimator.config, nthread=1)
+    return one_thread.run_chunk(env_config, indices, seed)

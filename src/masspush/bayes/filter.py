@@ -172,6 +172,7 @@ class ParticleFilter:
         self.env = env_config
         self.config = config or BayesConfig()
         self.physics = replace(env_config.physics, settle_time_cap=self.config.settle_cap)
+        self.seed = seed
         self.rng = np.random.default_rng([seed, 31])
         # A floor keeps the likelihood finite for noise-free worlds (the simulator is
         # deterministic, but its rest test stops chains within ~0.3 mm of rest).
@@ -208,8 +209,13 @@ class ParticleFilter:
             self.arm.close()
 
     # --- the particles --------------------------------------------------------------------
-    def reset(self, lengths: np.ndarray) -> None:
-        """A new chain with these (observed) link lengths: particles from the prior."""
+    def reset(self, lengths: np.ndarray, episode: int | None = None) -> None:
+        """A new chain with these (observed) link lengths: particles from the prior. With
+        `episode` (the episode's seed) the filter's randomness restarts from it, so that an
+        episode's estimate does not depend on which episodes were estimated before it (and
+        episodes can be split over workers)."""
+        if episode is not None:
+            self.rng = np.random.default_rng([self.seed, 31, episode])
         n, m = self.physics.n_links, self.config.particles
         self.lengths = tuple(float(v) for v in lengths)
         self.masses = self.rng.uniform(*self.physics.mass_range, size=(m, n))
@@ -476,8 +482,12 @@ class InfoSeekingPolicy:
     """Chooses each push to shrink the posterior of the mass distribution the most."""
 
     def __init__(self, filt: ParticleFilter, seed: int = 0):
-        self.filter = filt
+        self.filter, self.seed = filt, seed
         self.rng = np.random.default_rng([seed, 37])
+
+    def reset(self, episode: int) -> None:
+        """Restart the candidates' randomness from the episode's seed (`ParticleFilter.reset`)."""
+        self.rng = np.random.default_rng([self.seed, 37, episode])
 
     def act(self, start: np.ndarray) -> np.ndarray:
         n = self.filter.candidates

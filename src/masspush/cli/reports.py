@@ -98,6 +98,21 @@ def _bench_data(args: argparse.Namespace) -> int:
     return 0
 
 
+def _bench_ray_options(p: argparse.ArgumentParser) -> None:
+    from masspush.reports.bench_cluster import ClusterBench
+
+    add_fields(p, ClusterBench)
+
+
+def _bench_ray(args: argparse.Namespace) -> int:
+    from masspush.cluster.pool import check_address
+    from masspush.reports.bench_cluster import ClusterBench, bench_cluster
+
+    check_address("local", "bench ray")  # Ray installed, before any work
+    print(json.dumps(bench_cluster(build(ClusterBench, args))))
+    return 0
+
+
 def _bench_train(args: argparse.Namespace) -> int:
     from masspush.reports.bench import TrainBench, bench_train
 
@@ -148,6 +163,8 @@ COMMANDS = [
             _bench("ArmBench", True), _bench_arm),
     Command("bench data", GROUP, "collection speed, episodes per second", _bench("DataBench"),
             _bench_data),
+    Command("bench ray", GROUP, "collection on this machine against --ray local (1, 2 CPUs)",
+            _bench_ray_options, _bench_ray),
     Command("bench train", GROUP, "predictor training speed, samples per second",
             _bench("TrainBench"), _bench_train),
     Command("bench ppo", GROUP, "PPO training speed, pushes per second", _bench("PPOBench"),

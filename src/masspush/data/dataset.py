@@ -24,6 +24,8 @@ import shutil
 import subprocess
 import time
 import zipfile
+from collections import Counter
+from collections.abc import Iterator
 from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 from typing import Any, ClassVar
@@ -31,8 +33,17 @@ from typing import Any, ClassVar
 import numpy as np
 from tqdm import tqdm
 
+from masspush.cluster.pool import TaskPool, Workers, check_address, is_pool, open_pool
 from masspush.config import EnvConfig, check_choice, check_int
-from masspush.data.rollout import POLICIES, TRAIN, Episodes, Policy, empty_episodes, run_episodes
+from masspush.data.rollout import (
+    POLICIES,
+    TRAIN,
+    Episodes,
+    Policy,
+    empty_episodes,
+    run_chunk,
+    run_episodes,
+)
 from masspush.settings import Setting, get_setting
 
 SCHEMA_VERSION = 1
@@ -137,7 +148,11 @@ class CollectConfig:
     shard_size: int = 1000
     """Episodes per shard file."""
     workers: int | None = None
-    """Processes for an arm (default: one per core)."""
+    """Processes for an arm (default: one per core); with --ray local, the CPUs of the
+    cluster started for the run."""
+    ray: str | None = None
+    """Run on a Ray cluster, one task per shard: auto (this machine's cluster), local (one
+    started for the run), ray://HOST:PORT or HOST:PORT (pip install 'masspush[ray]')."""
     settings_file: str | None = None
     """TOML file with custom settings."""
     resize: bool = False
@@ -156,16 +171,19 @@ class CollectConfig:
         check_int("seed", self.seed, 0)
         check_int("workers", self.workers, optional=True)
         check_choice("policy", self.policy, tuple(POLICIES))
+        check_address(self.ray)
 
 
 def collect_dataset(config: CollectConfig, progress: bool = True) -> Manifest:
     """`collect` as `config` says."""
     setting = get_setting(config.setting, config.settings_file)
-    return collect(
-        setting, config.out, episodes=config.episodes, pusher=config.pusher or setting.pusher,
-        policy=config.policy, base_seed=config.seed, shard_size=config.shard_size,
-        workers=config.workers, progress=progress, resize=config.resize,
-    )  # fmt: skip
+    with open_pool(config.ray, config.workers) as workers:
+        return collect(
+            setting, config.out, episodes=config.episodes,
+            pusher=config.pusher or setting.pusher, policy=config.policy, base_seed=config.seed,
+            shard_size=config.shard_size, workers=workers, progress=progress,
+            resize=config.resize,
+        )  # fmt: skip
 
 
 def collect(
@@ -177,7 +195,7 @@ def collect(
     base_seed: int = 0,
     shard_size: int = 1000,
     env_config: EnvConfig | None = None,
-    workers: int | None = None,
+    workers: Workers = None,
     progress: bool = True,
     resize: bool = False,
 ) -> Manifest:
@@ -187,7 +205,8 @@ def collect(
     `episodes` than the directory's grows it; a smaller one is refused while the dataset is
     incomplete, unless `resize` makes it hold exactly `episodes` (shards beyond are deleted).
     A request that would not fit on the disk is refused before any work; a disk that fills
-    up during the collection leaves only whole shards, and the same command resumes."""
+    up during the collection leaves only whole shards, and the same command resumes.
+    `workers` may be a `TaskPool` (a Ray cluster): one task per shard, written here."""
     if episodes < 1 or shard_size < 1:
         raise ValueError(f"episodes and shard_size must be >= 1, got {episodes}, {shard_size}")
     if isinstance(policy, str):
@@ -233,10 +252,17 @@ def collect(
     ) as bar:
         done = manifest.episodes - missing
         bar.update(done)
-        for j in todo:
-            lo = j * shard_size
-            indices = np.arange(lo, lo + _shard_len(manifest, j))
-            eps = run_episodes(env_config, policy, indices, TRAIN, base_seed, workers)
+        if is_pool(workers):
+            shards = _shards_on_pool(
+                workers, manifest, todo, (env_config, policy, TRAIN, base_seed)
+            )
+        else:
+            shards = (
+                (j, run_episodes(env_config, policy, _shard_indices(manifest, j), TRAIN,
+                                 base_seed, workers))
+                for j in todo
+            )  # fmt: skip
+        for j, eps in shards:
             try:
                 write_shard(shard_path(root, j), eps)
             except OSError as err:
@@ -244,9 +270,35 @@ def collect(
                     f"{err.strerror}; the {done} episodes written are safe: "
                     "free space and rerun the same command to resume"),
                     str(shard_path(root, j))) from err  # fmt: skip
-            bar.update(len(indices))
-            done += len(indices)
+            bar.update(len(eps))
+            done += len(eps)
     return manifest
+
+
+def _shard_indices(manifest: Manifest, j: int) -> np.ndarray:
+    lo = j * manifest.shard_size
+    return np.arange(lo, lo + _shard_len(manifest, j))
+
+
+def _shards_on_pool(
+    pool: TaskPool, manifest: Manifest, todo: list[int], shared: tuple
+) -> Iterator[tuple[int, Episodes]]:
+    """The shards `todo` computed on `pool`, as each completes: a task per shard, or, with
+    fewer shards than about four per worker, a shard split into chunks of consecutive
+    episodes (put back together in order, so the shard is the same)."""
+    parts = max(1, -(-4 * pool.size // len(todo))) if todo else 1
+    tasks = []
+    for j in todo:
+        tasks += [(j, chunk) for chunk in np.array_split(_shard_indices(manifest, j), parts)
+                  if len(chunk)]  # fmt: skip
+    waiting = Counter(j for j, _ in tasks)
+    done: dict[int, dict[int, Episodes]] = {j: {} for j in todo}
+    for t, eps in pool.imap(run_chunk, [chunk for _, chunk in tasks], shared):
+        j = tasks[t][0]
+        done[j][t] = eps
+        if len(done[j]) == waiting[j]:
+            chunks = done.pop(j)
+            yield j, Episodes.concatenate([chunks[t] for t in sorted(chunks)])
 
 
 def _resized(root: Path, old: Manifest, episodes: int, resize: bool) -> Manifest:

@@ -22,6 +22,7 @@ from typing import Protocol
 
 import numpy as np
 
+from masspush.cluster.pool import Workers, gather, is_pool, split
 from masspush.config import EnvConfig
 from masspush.sim.chain import sample_chain
 from masspush.sim.pushers import pusher_kind
@@ -268,18 +269,39 @@ def _run_env_job(args) -> Episodes:
     return run_env(*args)
 
 
+def run_chunk(shared: tuple, indices: np.ndarray) -> Episodes:
+    """One task of a `TaskPool`: the episodes `indices` on one thread, as `run_episodes`
+    would run them (`shared`: env_config, policy, purpose, base_seed)."""
+    env_config, policy, purpose, base_seed = shared
+    in_worker = getattr(policy, "in_worker", None)
+    if in_worker is not None:
+        in_worker()
+    return run_episodes(env_config, policy, indices, purpose, base_seed, workers=1, threads=1)
+
+
 def run_episodes(
     env_config: EnvConfig,
     policy: Policy,
     indices: np.ndarray,
     purpose: int,
     base_seed: int,
-    workers: int | None = None,
+    workers: Workers = None,
+    threads: int = 0,
+    desc: str | None = None,
 ) -> Episodes:
-    """Episodes with every core: the batch engine for a pusher that has one, else processes."""
+    """Episodes with every core: the batch engine for a pusher that has one (on `threads`
+    threads, 0: all), else processes (`workers`, one per core by default); or, with a
+    `TaskPool` as `workers` (a Ray cluster), in chunks on its workers (a bar named `desc`
+    over them). The episodes are the same whichever runs them."""
     indices = np.asarray(indices, np.int64)
+    if is_pool(workers):
+        chunks = split(indices, workers)
+        shared = (env_config, policy, purpose, base_seed)
+        return Episodes.concatenate(
+            gather(workers.imap(run_chunk, chunks, shared, desc), len(chunks))
+        )
     if pusher_kind(env_config.pusher).batch:
-        return run_batch(env_config, policy, indices, purpose, base_seed)
+        return run_batch(env_config, policy, indices, purpose, base_seed, threads)
     workers = workers or os.cpu_count() or 1
     if workers == 1 or len(indices) < 2:
         return run_env(env_config, policy, indices, purpose, base_seed)

@@ -7,6 +7,7 @@ import os
 
 import numpy as np
 
+from masspush.cluster.pool import Workers
 from masspush.config import EnvConfig
 from masspush.data.rollout import EVAL, Policy, run_episodes
 from masspush.evaluate import EstimatorRun
@@ -43,9 +44,11 @@ class PredictorEstimator:
                    name or str(path), str(path), head)  # fmt: skip
 
     def run(
-        self, env_config: EnvConfig, indices: np.ndarray, seed: int, workers: int | None
+        self, env_config: EnvConfig, indices: np.ndarray, seed: int, workers: Workers
     ) -> EstimatorRun:
-        run = run_episodes(env_config, self.policy_impl, indices, EVAL, seed, workers)
+        # Episodes may run on a cluster; the predictor runs here, on all of them at once.
+        run = run_episodes(env_config, self.policy_impl, indices, EVAL, seed, workers,
+                           desc=f"episodes for {self.name}")  # fmt: skip
         good = run.select(run.ok)
         if len(good) == 0:
             return EstimatorRun(np.empty(0, int), np.empty((0, 0, 0)), np.empty((0, 0)), len(run))

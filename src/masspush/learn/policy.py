@@ -26,6 +26,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from masspush.cluster.pool import Workers, is_pool
 from masspush.config import EnvConfig
 from masspush.data.rollout import POLICIES, Episodes, Policy
 from masspush.learn.features import history_dim, history_features, push_reward
@@ -182,11 +183,12 @@ class PolicyConfig:
 
 def make_vec_env(
     env_config: EnvConfig, predictor_path: str | os.PathLike, n_envs: int, seed: int,
-    chain_env: ChainEnvFactory | None = None,
+    chain_env: ChainEnvFactory | None = None, workers: Workers = None,
 ):  # fmt: skip
     """`n_envs` pushing episodes: for a pusher with a batch path in lockstep on the
     multi-threaded batch path (`masspush.learn.vec_env`), for an arm or in another world
-    (`chain_env`) as PushPolicyEnvs in worker processes."""
+    (`chain_env`) as PushPolicyEnvs in worker processes, or in a cluster's actors where
+    `workers` is a pool that has them (`RayPool.vec_env`: the same transitions)."""
     from stable_baselines3.common.env_util import make_vec_env as sb3_make_vec_env
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor
 
@@ -196,6 +198,8 @@ def make_vec_env(
         return VecMonitor(vec)
 
     vec_cls = SubprocVecEnv if n_envs > 1 else DummyVecEnv
+    if is_pool(workers) and hasattr(workers, "vec_env"):
+        vec_cls = workers.vec_env
     return sb3_make_vec_env(
         PushPolicyEnv,
         n_envs=n_envs,
@@ -286,6 +290,7 @@ def train_policy(
     progress: bool = True,
     meta: dict[str, Any] | None = None,
     chain_env: ChainEnvFactory | None = None,
+    workers: Workers = None,
 ) -> Path:
     """Train (or, from `init`, go on training) a policy against a frozen predictor; in the
     training simulation, or on the chains of `chain_env` (see `PushPolicyEnv`).
@@ -300,7 +305,9 @@ def train_policy(
     final = out / "policy.zip"
     if final.exists():
         return final
-    vec_env = make_vec_env(env_config, predictor_path, config.n_envs, config.seed, chain_env)
+    vec_env = make_vec_env(
+        env_config, predictor_path, config.n_envs, config.seed, chain_env, workers
+    )
     try:
         checkpoints = sorted(out.glob("checkpoint_*_steps.zip"), key=_checkpoint_steps)
         start = checkpoints[-1] if checkpoints else init

@@ -24,6 +24,7 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from masspush.cluster.pool import Workers
 from masspush.data.dataset import code_version, collect, load_dataset
 from masspush.evaluate import evaluate
 from masspush.learn.estimator import PredictorEstimator
@@ -86,10 +87,14 @@ class Recipe:
         config: RecipeConfig = RecipeConfig(),
         log: Callable[[str], None] = print,
         progress: bool = True,
+        workers: Workers = None,
     ):
         self.setting, self.pusher, self.config = setting, pusher, config
         self.dir = Path(run_dir)
         self.log, self.progress = log, progress
+        # Local processes, or a cluster's pool for the collections, evaluations and PPO's
+        # environments (the results are the same; only where they run differs).
+        self.workers = workers
         self.env_config = setting.env_config(pusher)
         self.state_path = self.dir / "state.json"
 
@@ -198,6 +203,7 @@ class Recipe:
             policy=policy,
             base_seed=1000 * self.config.seed + stream,
             progress=self.progress,
+            workers=self.workers,
         )
 
     def _train_policy(self, i: int) -> None:
@@ -208,6 +214,7 @@ class Recipe:
             replace(self.config.policy, seed=self.config.policy.seed + i),
             init=self.policy(i - 1) if i > 1 else None,
             progress=self.progress,
+            workers=self.workers,
             meta={
                 "setting": self.setting.as_dict(),
                 "code_version": code_version(),
@@ -246,6 +253,6 @@ class Recipe:
     def _evaluate(self, state: dict[str, Any], i: int | str) -> None:
         estimator = PredictorEstimator.from_file(self.predictor(i), self.setting.name)
         scores = evaluate(
-            self.setting, estimator, episodes=self.config.eval_episodes, seed=self.config.seed
+            self.setting, estimator, self.config.eval_episodes, self.config.seed, self.workers
         )
         state["history"].append({"stage": f"predictor-{i}", **scores.to_dict()})

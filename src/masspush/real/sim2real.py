@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from tqdm import tqdm
 
+from masspush.cluster.pool import Workers, check_address, gather, is_pool, open_pool
 from masspush.real.finetune import (
     FEATURE_KINDS,
     PAPER_CLASSES,
@@ -101,6 +102,12 @@ class Sim2RealJob:
     """The random-push arm's model."""
     learned_model: str = ARMS["learned"]
     """The learned arm's model, e.g. tp+dr."""
+    ray: str | None = None
+    """Record the classes' episodes on a Ray cluster, a task per class and arm: auto, local,
+    ray://HOST:PORT or HOST:PORT (pip install 'masspush[ray]')."""
+
+    def __post_init__(self) -> None:
+        check_address(self.ray)
 
 
 def sim2real(job: Sim2RealJob, config: Sim2RealConfig) -> str:
@@ -111,13 +118,14 @@ def sim2real(job: Sim2RealJob, config: Sim2RealConfig) -> str:
         models={"random": job.random_model, "learned": job.learned_model},
         classifier=replace(config.classifier, seed=config.seed),
     )
-    run_sim2real(config, job.out)
+    with open_pool(job.ray) as workers:
+        run_sim2real(config, job.out, workers=workers)
     return (Path(job.out) / "summary.md").read_text()
 
 
 def record_classes(
     config: Sim2RealConfig, predictor, policy, robot_name: str, desc: str = "",
-    progress: bool = True, target: TargetWorld | None = None,
+    progress: bool = True, target: TargetWorld | None = None, workers: Workers = None,
 ):  # fmt: skip
     """`config.episodes_per_class` episodes of each of the paper's classes, pushed by
     `policy` in `config.world`: the recording (labelled; every episode with at least one
@@ -126,64 +134,86 @@ def record_classes(
     `sim.simulate.REACH_FAILURES`), failed otherwise, and the good pushes. An episode that
     fails is never replaced: which episodes survive could depend on the class, and a lead
     measured on survivors would then be partly selection (docs/real-robot.md). `target`
-    replaces the target world (default: the target world at `config.severity`)."""
+    replaces the target world (default: the target world at `config.severity`). With a
+    `TaskPool` as `workers` (a Ray cluster), each class is a task: the same recording."""
     from masspush.data.recording import Recording
-    from masspush.real.backends import SimRobot
-    from masspush.real.robot import run_segments
-    from masspush.real.target_world import TargetWorldRobot, scaled_world
+    from masspush.real.target_world import scaled_world
     from masspush.settings import get_setting
 
     setting = get_setting(config.setting)
-    pushes = setting.env_config().pushes
     recording = Recording(n_links=setting.n_links, robot=robot_name, setting=setting.name)
     failures: dict[str, int] = {}
     classes: dict[str, dict[str, int]] = {}
-    wanted = config.episodes_per_class * len(PAPER_CLASSES)
     world = target or scaled_world(config.severity)
-    bar = tqdm(total=wanted, desc=desc, disable=not progress)
-    for c, (label, masses) in enumerate(PAPER_CLASSES.items()):
-        # Seeds differ between classes but are shared by the two arms: both see the same
-        # chains, frictions and biases, so the comparison is paired.
-        first = config.seed + 100_000 * c
-        robot = (
-            TargetWorldRobot(setting, world, seed=first, masses=masses, lab=config.lab)
-            if config.world == "target"
-            # The classes are the paper's masses in any setting, as in the target world.
-            else SimRobot(
-                setting,
-                seed=first,
-                masses=masses,
-                pushes=pushes * config.segments,
-                allow_out_of_range=True,
-            )
-        )
-        tally = classes[label] = {k: 0 for k in ("attempted", "kept", "lost", "failed")}
-        tally["good_pushes"] = 0
-        for i in range(config.episodes_per_class):
-            episode = run_segments(
-                robot, predictor, policy, pushes, config.segments, seed=robot.seed
-            )
-            tally["attempted"] += 1
-            tally["good_pushes"] += len(episode.estimates)
-            if episode.failure is not None:
-                failures[episode.failure] = failures.get(episode.failure, 0) + 1
-                tally["lost" if episode.failure in REACH_FAILURES else "failed"] += 1
-            if episode.estimates:
-                tally["kept"] += 1
-                recording.episodes.append(
-                    episode.recorded(
-                        id=f"{label}-{i + 1:03d}", label=label, masses=robot.truth["masses"]
-                    )
-                )
-            bar.update()
-        robot.close()
-    bar.close()
+    shared = (config, predictor, policy, world)
+    jobs = list(range(len(PAPER_CLASSES)))
+    if is_pool(workers):
+        results = gather(workers.imap(_record_class, jobs, shared, desc or None), len(jobs))
+    else:
+        bar = tqdm(total=config.episodes_per_class * len(jobs), desc=desc, disable=not progress)
+        results = [_record_class(shared, c, bar.update) for c in jobs]
+        bar.close()
+    for label, (episodes, class_failures, tally) in zip(PAPER_CLASSES, results, strict=True):
+        recording.episodes += episodes
+        classes[label] = tally
+        for reason, count in class_failures.items():
+            failures[reason] = failures.get(reason, 0) + count
     return recording, failures, classes
+
+
+def _record_class(shared: tuple, c: int, advance=None) -> tuple[list, dict, dict]:
+    """Class `c`'s episodes, one robot for them all (its randomness runs on from episode to
+    episode): the recorded episodes, the failed pushes by reason, the tally."""
+    from masspush.real.backends import SimRobot
+    from masspush.real.robot import run_segments
+    from masspush.real.target_world import TargetWorldRobot
+    from masspush.settings import get_setting
+
+    config, predictor, policy, world = shared
+    label, masses = list(PAPER_CLASSES.items())[c]
+    setting = get_setting(config.setting)
+    pushes = setting.env_config().pushes
+    # Seeds differ between classes but are shared by the two arms: both see the same
+    # chains, frictions and biases, so the comparison is paired.
+    first = config.seed + 100_000 * c
+    robot = (
+        TargetWorldRobot(setting, world, seed=first, masses=masses, lab=config.lab)
+        if config.world == "target"
+        # The classes are the paper's masses in any setting, as in the target world.
+        else SimRobot(
+            setting,
+            seed=first,
+            masses=masses,
+            pushes=pushes * config.segments,
+            allow_out_of_range=True,
+        )
+    )
+    episodes, failures = [], {}
+    tally = {k: 0 for k in ("attempted", "kept", "lost", "failed")}
+    tally["good_pushes"] = 0
+    for i in range(config.episodes_per_class):
+        episode = run_segments(robot, predictor, policy, pushes, config.segments, seed=robot.seed)
+        tally["attempted"] += 1
+        tally["good_pushes"] += len(episode.estimates)
+        if episode.failure is not None:
+            failures[episode.failure] = failures.get(episode.failure, 0) + 1
+            tally["lost" if episode.failure in REACH_FAILURES else "failed"] += 1
+        if episode.estimates:
+            tally["kept"] += 1
+            episodes.append(
+                episode.recorded(
+                    id=f"{label}-{i + 1:03d}", label=label, masses=robot.truth["masses"]
+                )
+            )
+        if advance is not None:
+            advance()
+    robot.close()
+    return episodes, failures, tally
 
 
 def record_arm(
     config: Sim2RealConfig, arm: str, path: Path, progress: bool = True,
-    target: TargetWorld | None = None, robot_name: str | None = None,
+    target: TargetWorld | None = None, robot_name: str | None = None, workers: Workers = None,
 ) -> dict[str, Any]:  # fmt: skip
     """Run one arm's episodes in the target world into the recording at `path` (kept and
     reused when complete, with its failed pushes and each class's episodes attempted, kept
@@ -224,6 +254,7 @@ def record_arm(
         f"{config.world} world, {arm} pushes",
         progress,
         target,
+        workers,
     )
     write_recording(path, recording)
     kept = {"failed_pushes": failures, "by_class": classes}
@@ -291,15 +322,16 @@ def run_counts(segments: int) -> list[int]:
 
 
 def run_sim2real(
-    config: Sim2RealConfig, out_dir: str | Path, progress: bool = True
+    config: Sim2RealConfig, out_dir: str | Path, progress: bool = True, workers: Workers = None
 ) -> dict[str, Any]:
-    """Both arms: record (or reuse) and score; writes summary.json and summary.md."""
+    """Both arms: record (or reuse; on `workers`) and score; writes summary.json and
+    summary.md."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     results: dict[str, Any] = {"config": asdict(config), "arms": {}}
     for arm in ARMS:
         path = out / f"{arm}.jsonl"
-        collected = record_arm(config, arm, path, progress)
+        collected = record_arm(config, arm, path, progress, workers=workers)
         scores = score_arm(config, arm, path)
         for kind in FEATURE_KINDS:
             # Every attempted episode counts: one with no good push is a wrong answer.

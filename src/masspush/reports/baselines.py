@@ -16,6 +16,7 @@ from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from masspush.cluster.pool import Workers, check_address, open_pool
 from masspush.config import check_int
 from masspush.data.dataset import code_version, collect, load_dataset
 from masspush.evaluate import evaluate
@@ -51,10 +52,14 @@ class BaselinesConfig:
     """Ship the trained models into the package."""
     ship_only: bool = False
     """Only ship models already trained."""
+    ray: str | None = None
+    """Run the collection and the evaluations on a Ray cluster: auto, local,
+    ray://HOST:PORT or HOST:PORT (pip install 'masspush[ray]')."""
 
     def __post_init__(self) -> None:
         if self.setting is None and not self.table:
             raise ValueError("setting is required (unless --table)")
+        check_address(self.ray)
         if self.pusher is not None:
             pusher_kind(self.pusher)
         check_int("eval_episodes", self.eval_episodes)
@@ -73,10 +78,11 @@ def baselines(config: BaselinesConfig) -> list[str]:
         train = FAST if config.fast else TrainConfig()
         if config.features:
             train = replace(train, features=config.features)
-        results = run_baselines(
-            config.setting, pusher, train, eval_episodes=config.eval_episodes,
-            episodes=config.episodes,
-        )  # fmt: skip
+        with open_pool(config.ray) as workers:
+            results = run_baselines(
+                config.setting, pusher, train, eval_episodes=config.eval_episodes,
+                episodes=config.episodes, workers=workers,
+            )  # fmt: skip
         for name, r in results["models"].items():
             lines.append(
                 f"{name:4s} percentage error {r['percentage_error']:6.2f}  relative "
@@ -107,15 +113,17 @@ def run_baselines(
     eval_seed: int = 0,
     root: str | Path = ".",
     episodes: tuple[int, int] | None = None,
+    workers: Workers = None,
 ) -> dict[str, Any]:
-    """Collect, train RP and RP+, evaluate; returns (and writes) the results with timings."""
+    """Collect, train RP and RP+, evaluate (episodes on `workers`: local processes or a
+    cluster's pool); returns (and writes) the results with timings."""
     spec = get_setting(setting)
     n_rp, n_rp_plus = episodes or EPISODES[spec.n_links]
     paths = baseline_paths(setting, pusher, root)
     timings: dict[str, float] = {}
 
     t0 = time.perf_counter()
-    collect(spec, paths["data"], episodes=n_rp_plus, pusher=pusher)
+    collect(spec, paths["data"], episodes=n_rp_plus, pusher=pusher, workers=workers)
     timings["collect_s"] = time.perf_counter() - t0
 
     results: dict[str, Any] = {
@@ -141,7 +149,7 @@ def run_baselines(
         timings[f"train_{name}_s"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         estimator = PredictorEstimator.from_file(paths[name] / "predictor.pt", spec.name)
-        scores = evaluate(spec, estimator, episodes=eval_episodes, seed=eval_seed).to_dict()
+        scores = evaluate(spec, estimator, eval_episodes, eval_seed, workers).to_dict()
         timings[f"evaluate_{name}_s"] = time.perf_counter() - t0
         results["models"][name] = {
             "train_episodes": n,

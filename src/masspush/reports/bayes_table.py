@@ -15,6 +15,7 @@ from typing import Any
 
 from masspush.bayes.estimator import BAYES_MODELS
 from masspush.bayes.filter import filter_for
+from masspush.cluster.pool import Workers, check_address, open_pool
 from masspush.config import check_int
 from masspush.evaluate import evaluate
 from masspush.metrics import paired_difference_interval, paired_percentage_errors
@@ -50,6 +51,7 @@ def measure(
     root: str | Path = ".",
     seed: int = 0,
     suffix: str = "",
+    workers: Workers = None,
 ) -> dict[str, Any]:
     """One setting and model on `episodes` fresh evaluation episodes, cached under the
     model's name and `suffix`; for the paired comparison (the filter, and TP+ on its
@@ -65,18 +67,21 @@ def measure(
             and (not paired or "per_episode" in cached)
         ):  # fmt: skip
             return cached
-    result = run_model(setting, model, episodes, seed, paired)
+    result = run_model(setting, model, episodes, seed, paired, workers)
     result["requested_episodes"] = episodes
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(result, indent=2) + "\n")
     return result
 
 
-def run_model(setting: str, model: str, episodes: int, seed: int, per_episode: bool) -> dict:
+def run_model(
+    setting: str, model: str, episodes: int, seed: int, per_episode: bool,
+    workers: Workers = None,
+) -> dict:  # fmt: skip
     """`masspush evaluate`'s JSON for one setting and model."""
     spec = get_setting(setting)
     estimator = load_estimator(model, spec)
-    return evaluate(spec, estimator, episodes, seed, per_episode=per_episode).to_dict()
+    return evaluate(spec, estimator, episodes, seed, workers, per_episode).to_dict()
 
 
 def filter_settings(setting: str) -> dict[str, Any]:
@@ -138,12 +143,16 @@ class BayesTableConfig:
     """Episodes for TP+'s own figure and its coverage."""
     table_only: bool = False
     """Only rebuild the table from the cache."""
+    ray: str | None = None
+    """Run the episodes on a Ray cluster: auto, local, ray://HOST:PORT or HOST:PORT
+    (pip install 'masspush[ray]')."""
 
     def names(self) -> list[str]:
         return paper_settings(self.settings)
 
     def __post_init__(self) -> None:
         self.names()  # each named setting exists
+        check_address(self.ray)
         check_int("episodes", self.episodes)
         check_int("tp_episodes", self.tp_episodes)
         unknown = set(self.models) - set(MODELS)
@@ -153,10 +162,11 @@ class BayesTableConfig:
 
 def bayes_table_run(config: BayesTableConfig) -> str:
     """The table (Markdown), measuring what is missing unless `table_only`."""
-    return bayes_table(
-        config.names(), config.episodes, config.models, tp_episodes=config.tp_episodes,
-        measure_missing=not config.table_only,
-    )  # fmt: skip
+    with open_pool(None if config.table_only else config.ray) as workers:
+        return bayes_table(
+            config.names(), config.episodes, config.models, tp_episodes=config.tp_episodes,
+            measure_missing=not config.table_only, workers=workers,
+        )  # fmt: skip
 
 
 def bayes_table(
@@ -166,6 +176,7 @@ def bayes_table(
     root: str | Path = ".",
     tp_episodes: int = 800,
     measure_missing: bool = True,
+    workers: Workers = None,
 ) -> str:
     """Measure what is missing (unless told not to), then write results/bayes.md. With TP+
     among the models, TP+ is measured twice: on `tp_episodes` (Table 1's figure and its
@@ -179,7 +190,8 @@ def bayes_table(
         for model, n, suffix in runs:
             path = cache_path(root, setting, model, suffix)
             if measure_missing:
-                row[model + suffix] = measure(setting, model, n, root, suffix=suffix)
+                row[model + suffix] = measure(setting, model, n, root, suffix=suffix,
+                                              workers=workers)  # fmt: skip
             elif path.exists():
                 row[model + suffix] = json.loads(path.read_text())
         rows.append(row)

@@ -18,6 +18,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from masspush.cluster.pool import check_address, open_pool
 from masspush.learn.predictor import FAST, load_model
 from masspush.learn.recipe import Recipe, RecipeConfig
 from masspush.models import ship, shipped_file
@@ -47,14 +48,22 @@ class TrainJob:
     """Ship TP and TP+ into the package (and RP, for a setting with none yet)."""
     settings_file: str | None = None
     """TOML file with custom settings."""
+    ray: str | None = None
+    """Run the collections, evaluations and (for an arm) PPO's environments on a Ray
+    cluster: auto, local, ray://HOST:PORT or HOST:PORT (pip install 'masspush[ray]')."""
+
+    def __post_init__(self) -> None:
+        check_address(self.ray)
 
 
 def train_setting(job: TrainJob, recipe: RecipeConfig, log=print) -> list[str]:
     """Run the recipe for one setting (and ship it); the report."""
     setting = get_setting(job.setting, job.settings_file)
     pusher = job.pusher or setting.pusher
-    run = Recipe(setting, pusher, job.out or train_dir(setting.name, pusher), recipe, log=log)
-    state = run.run()
+    out = job.out or train_dir(setting.name, pusher)
+    with open_pool(job.ray) as workers:
+        run = Recipe(setting, pusher, out, recipe, log=log, workers=workers)
+        state = run.run()
     lines = [
         f"{h['stage']:16s} percentage error {h['percentage_error']:6.2f}  "
         f"(constant floor {h['constant_floor']:.2f}, {h['episodes']} episodes)"
