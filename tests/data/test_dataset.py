@@ -179,9 +179,7 @@ def test_a_collection_on_a_pool_writes_the_same_shards_byte_for_byte(
     assert pool.tasks > -(-episodes // 10)
 
 
-def test_a_collection_on_a_pool_stopped_midway_resumes_to_the_same_shards(
-    tmp_path, serial_pool
-):
+def test_a_collection_on_a_pool_stopped_midway_resumes_to_the_same_shards(tmp_path, serial_pool):
     small(tmp_path / "here", episodes=40)
     with pytest.raises(KeyboardInterrupt):
         small(tmp_path / "pool", episodes=40, workers=serial_pool(stop_after=5))

@@ -286,6 +286,4 @@ def test_the_classes_recorded_on_a_pool_are_the_classes_recorded_here(serial_poo
     here = record_classes(CONFIG, predictor, policy, "t", progress=False)
     pooled = record_classes(CONFIG, predictor, policy, "t", workers=serial_pool(size=5))
     assert pooled[1:] == here[1:]  # failures and each class's tally
-    assert json.dumps(pooled[0].episodes, default=str) == json.dumps(
-        here[0].episodes, default=str
-    )
+    assert json.dumps(pooled[0].episodes, default=str) == json.dumps(here[0].episodes, default=str)
