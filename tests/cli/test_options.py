@@ -69,3 +69,23 @@ def test_the_cli_shows_the_dataclass_default_and_refuses_what_it_refuses(capsys)
     assert f"(default: {EvaluateConfig.__dataclass_fields__['episodes'].default})" in shown
     assert main(["evaluate", "--setting", "2link-1-10", "--model", "rp", "--episodes", "0"]) == 2
     assert "episodes must be an integer >= 1" in capsys.readouterr().err
+
+
+def test_a_field_without_a_default_is_a_required_option(capsys):
+    @dataclass(frozen=True)
+    class Needs:
+        setting: str
+        """Which."""
+        seed: int = 0
+
+    p = argparse.ArgumentParser(prog="x")
+    add_fields(p, Needs)
+    assert build(Needs, p.parse_args(["--setting", "a"])) == Needs("a")
+    with pytest.raises(SystemExit):
+        p.parse_args(["--seed", "1"])  # argparse's one line, not a TypeError after parsing
+    assert "the following arguments are required: --setting" in capsys.readouterr().err
+    # The command it was found with: train-predictor without --setting.
+    with pytest.raises(SystemExit) as exit_:
+        main(["train-predictor", "--data", "somewhere"])
+    assert exit_.value.code == 2
+    assert "required: --setting" in capsys.readouterr().err

@@ -107,7 +107,9 @@ def add_fields(
         flag = "--" + rename.get(name, name).replace("_", "-")
         text = ((help or {}).get(name) or docs.get(name, "")).replace("%", "%%")
         kwargs: dict[str, Any] = {"dest": prefix + name, "default": argparse.SUPPRESS}
-        if name in required:
+        if name in required or default is MISSING:
+            # A field without a default is required: argparse says so in one line, where the
+            # dataclass would raise a TypeError after parsing.
             kwargs["required"] = True
         elif default is not MISSING and not (tp is bool and default is False):
             text += f" (default: {_show(default)})" if default is not None else ""
