@@ -260,12 +260,16 @@ def run_env(
     return out
 
 
-def _run_env_job(args) -> Episodes:
+def _enter_worker(policy: Policy) -> None:
     # A policy that computes (a learned one) keeps to one thread in a worker: one worker per
     # core already, and its own threads would oversubscribe the cores.
-    in_worker = getattr(args[1], "in_worker", None)
+    in_worker = getattr(policy, "in_worker", None)
     if in_worker is not None:
         in_worker()
+
+
+def _run_env_job(args) -> Episodes:
+    _enter_worker(args[1])
     return run_env(*args)
 
 
@@ -273,9 +277,7 @@ def run_chunk(shared: tuple, indices: np.ndarray) -> Episodes:
     """One task of a `TaskPool`: the episodes `indices` on one thread, as `run_episodes`
     would run them (`shared`: env_config, policy, purpose, base_seed)."""
     env_config, policy, purpose, base_seed = shared
-    in_worker = getattr(policy, "in_worker", None)
-    if in_worker is not None:
-        in_worker()
+    _enter_worker(policy)
     return run_episodes(env_config, policy, indices, purpose, base_seed, workers=1, threads=1)
 
 
