@@ -92,6 +92,11 @@ class BayesEstimator:
         self.policy = "information-seeking" if self.seeking else "random"
         self.model_file = None
 
+    @property
+    def label(self) -> str:
+        """What its progress bars say."""
+        return f"{self.name} on {self.setting.name}"
+
     def run(
         self, env_config: EnvConfig, indices: np.ndarray, seed: int, workers: Workers
     ) -> EstimatorRun:
@@ -102,9 +107,8 @@ class BayesEstimator:
         start = time.perf_counter()
         if is_pool(workers):
             chunks = split(indices, workers)
-            label = f"{self.name} on {self.setting.name}"
             shared = (self, env_config, seed)
-            parts = gather(workers.imap(_chunk_task, chunks, shared, label), len(chunks))
+            parts = gather(workers.imap(_chunk_task, chunks, shared, self.label), len(chunks))
         else:
             parts = [self.run_chunk(env_config, indices, seed, self.progress)]
         seconds = (time.perf_counter() - start) / max(len(indices), 1)
@@ -120,8 +124,7 @@ class BayesEstimator:
         k = env_config.pushes
         out: dict = {"index": [], "estimates": [], "means": [], "truths": [], "inside": [],
                      "failures": 0, "unexplained": 0}  # fmt: skip
-        label = f"{self.name} on {self.setting.name}"
-        for i in tqdm(indices, desc=label, disable=not progress):
+        for i in tqdm(indices, desc=self.label, disable=not progress):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", UnexplainedObservationWarning)
                 result = run_bayes_episode(env, filt, policy, episode_seed(EVAL, seed, int(i)), k)
