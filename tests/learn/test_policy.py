@@ -5,7 +5,7 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 from masspush.config import EnvConfig
-from masspush.data.rollout import TRAIN, run_batch, run_env, run_episodes
+from masspush.data.rollout import TRAIN, Episodes, run_batch, run_env, run_episodes
 from masspush.learn.features import (
     LOSS_REWARD,
     history_dim,
@@ -143,7 +143,87 @@ def test_a_trained_policy_pushes_the_same_way_for_the_same_seeds(predictor_file,
     np.testing.assert_array_equal(a.actions, b.actions)
 
 
+@pytest.mark.slow
+def test_an_episode_of_runs_restarts_the_history_on_the_same_chain(predictor_file):
+    from masspush.learn.predictor import load_model
+
+    # Without observation noise the rest pose seen is the true one.
+    env = PushPolicyEnv(replace(CONFIG, obs_noise=0.0), str(predictor_file), runs=3)
+    check_env(env, skip_render_check=True)
+    predictor = load_model(predictor_file)[0]
+    for seed in range(4):
+        obs, info = env.reset(seed=seed)
+        steps, done = 0, False
+        while not done:
+            obs, reward, done, _, step = env.step(np.array([0.3, 0.4], np.float32))
+            steps += 1
+            assert step["mass_distribution"].tolist() == info["mass_distribution"].tolist()
+            if steps % 2 == 0 and not done:
+                # A run ended: the next begins at its last rest pose with an empty history.
+                fresh = np.full((1, 3, env.d), np.nan, np.float32)
+                fresh[0, 0] = step["config"]
+                expected = history_features(
+                    fresh, np.full((1, 2, 2), np.nan, np.float32), env._lengths, 0
+                )[0]
+                np.testing.assert_allclose(obs, expected, atol=1e-6)
+                assert env._t == 0 and env._run == steps // 2
+        assert steps == 6 or step["failure"] is not None
+    # The estimate paid for is the run's: the frozen predictor on the run's history alone.
+    env.reset(seed=1)
+    env.step(np.array([0.3, 0.4], np.float32))
+    _, _, done, _, step = env.step(np.array([0.3, 0.4], np.float32))
+    if not done:
+        start = env._obs[0, 0].copy()
+        _, reward, _, _, step = env.step(np.array([0.3, 0.4], np.float32))
+        if step["failure"] is None:
+            obs = np.full((1, 3, env.d), np.nan, np.float32)
+            obs[0, 0], obs[0, 1] = start, env._obs[0, 1]
+            actions = np.zeros((1, 2, 2), np.float32)
+            actions[0, 0] = [0.3, 0.4]
+            history = Episodes.history(obs, actions, env._lengths)
+            estimate = predictor.predict(history)[0, 0]
+            assert reward == pytest.approx(float(paper_reward(estimate, env._truth)))
+
+
+@pytest.mark.slow
+def test_a_policy_trains_on_episodes_of_runs(predictor_file, tmp_path):
+    import json
+
+    from masspush.learn.policy import make_vec_env
+
+    vec = make_vec_env(CONFIG, predictor_file, 2, 0, runs=3)
+    try:
+        assert vec.get_attr("runs") == [3, 3]  # not the batch path, which has no runs
+    finally:
+        vec.close()
+    config = PolicyConfig(n_envs=2, steps=16, n_steps=8, runs=3)
+    path = train_policy(CONFIG, predictor_file, tmp_path / "p", config, progress=False)
+    assert json.loads((tmp_path / "p" / "policy.json").read_text())["config"]["runs"] == 3
+    policy = LearnedPolicy(path, "recurrent", runs=3)
+    assert run_episodes(CONFIG, policy, np.arange(3), TRAIN, 0).actions.shape == (3, 2, 2)
+
+
+def test_a_policy_environment_of_runs_needs_the_training_simulation(predictor_file):
+    with pytest.raises(ValueError, match="runs"):
+        PushPolicyEnv(CONFIG, str(predictor_file), chain_env=lambda: None, runs=2)
+    with pytest.raises(ValueError, match="runs"):
+        PushPolicyEnv(CONFIG, str(predictor_file), runs=0)
+
+
+def test_a_policy_trained_on_runs_says_so_to_its_deployment(tmp_path):
+    from masspush.learn.policy import model_policy
+
+    (tmp_path / "policy.zip").write_bytes(b"")
+    meta = {"policy": "learned", "policy_file": "policy.zip", "policy_algo": "recurrent"}
+    assert model_policy(meta, tmp_path / "m.pt").runs == 1
+    assert model_policy({**meta, "policy_runs": 8}, tmp_path / "m.pt").runs == 8
+
+
 def test_bad_policy_configs_are_refused():
+    with pytest.raises(ValueError, match="runs"):
+        PolicyConfig(runs=0)
+    with pytest.raises(ValueError, match="recurrent"):
+        PolicyConfig(algo="mlp", runs=2)
     with pytest.raises(ValueError, match="algo"):
         PolicyConfig(algo="sac")
     with pytest.raises(ValueError, match="n_steps"):

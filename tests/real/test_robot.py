@@ -143,3 +143,30 @@ def test_a_measured_geometry_is_checked(bad):
     values = {"link_width": 0.04, "link_height": 0.03, "joint_gap": 0.04, "tool_radius": 0.006}
     with pytest.raises(ValueError):
         ChainGeometry(**{**values, **bad})
+
+
+class _CountingPolicy(RandomPolicy):
+    """A random policy that counts how often its memory is wiped."""
+
+    def __init__(self, runs: int):
+        super().__init__()
+        self.runs, self.resets = runs, 0
+
+    def reset(self, seeds: np.ndarray) -> None:
+        self.resets += 1
+        super().reset(seeds)
+
+
+@pytest.mark.parametrize("runs", [1, 2, 4, 8])
+def test_runs_of_a_policy_trained_on_runs_keep_its_memory_as_in_training(predictor, runs):
+    from masspush.real.robot import run_segments
+    from masspush.real.target_world import TargetWorldRobot
+
+    robot = TargetWorldRobot(SETTING, seed=5)
+    policy = _CountingPolicy(runs)
+    episode = run_segments(robot, predictor, policy, 2, 4, seed=1)
+    started = (len(episode.reports) + 1) // 2
+    # Wiped at the start of each block of `runs` runs, as its training episodes began.
+    assert policy.resets == len(range(0, started, runs))
+    if episode.failure is None:
+        assert policy.resets == {1: 4, 2: 2, 4: 1, 8: 1}[runs]

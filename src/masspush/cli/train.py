@@ -53,8 +53,8 @@ def _recipe_options(p: argparse.ArgumentParser) -> None:
     from masspush.learn.policy import PolicyConfig
     from masspush.learn.recipe import RecipeConfig
 
-    add_fields(p, PolicyConfig, only=("algo", "steps", "n_envs"), prefix="policy_",
-               rename={"steps": "ppo_steps", "n_envs": "envs"})  # fmt: skip
+    add_fields(p, PolicyConfig, only=("algo", "steps", "n_envs", "runs"), prefix="policy_",
+               rename={"steps": "ppo_steps", "n_envs": "envs", "runs": "policy_runs"})  # fmt: skip
     add_fields(p, RecipeConfig, only=RECIPE_FIELDS)
 
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 import json
 import os
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -66,23 +66,33 @@ class PushPolicyEnv(gym.Env):
 
     With `chain_env` (a `ChainEnvFactory`), the chains are those of the environment it makes
     (another world, `masspush.real.randomise`) instead of the training simulation.
+
+    With `runs` > 1 an episode is that many runs of K pushes on one chain, as
+    `masspush.real.robot.run_segments` deploys them: each run starts where the last left the
+    chain, with the history (and so the predictor) restarted and the policy's memory kept; a
+    chain lost in any run ends the episode.
     """
 
     metadata: dict[str, Any] = {"render_modes": []}  # noqa: RUF012 (gymnasium's convention)
 
     def __init__(
         self, env_config: EnvConfig, predictor_path: str,
-        chain_env: ChainEnvFactory | None = None,
+        chain_env: ChainEnvFactory | None = None, runs: int = 1,
     ):  # fmt: skip
         import torch
 
         from masspush.env import ChainEnv
         from masspush.learn.predictor import load_model
 
+        if runs < 1:
+            raise ValueError(f"runs must be >= 1, got {runs}")
+        if runs > 1 and chain_env is not None:
+            raise ValueError("runs > 1 needs the training simulation, not another world")
         torch.set_num_threads(1)
         physics = env_config.physics
-        self.env_config = env_config
-        self.chain_env = ChainEnv.from_config(env_config) if chain_env is None else chain_env()
+        self.env_config, self.runs = env_config, runs
+        chain_config = replace(env_config, pushes=env_config.pushes * runs)
+        self.chain_env = ChainEnv.from_config(chain_config) if chain_env is None else chain_env()
         self.predictor, _ = load_model(predictor_path)
         self.k, self.n, self.d = env_config.pushes, physics.n_links, physics.obs_dim
         self.workspace = pusher_kind(env_config.pusher).workspace
@@ -103,7 +113,7 @@ class PushPolicyEnv(gym.Env):
         self._lengths = info["lengths"][None].astype(np.float32)
         self._truth = info["mass_distribution"]
         self._obs[0, 0] = obs[: self.d]
-        self._t = 0
+        self._t, self._run = 0, 0
         return self._features(), info
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
@@ -119,7 +129,17 @@ class PushPolicyEnv(gym.Env):
         estimate = self.predictor.predict(history)[0, self._t - 1]
         reward = push_reward(estimate, self._truth, None)
         info["estimate"] = estimate
+        if self._t == self.k and self._run + 1 < self.runs:
+            self._next_run()
         return self._features(), reward, bool(terminated), False, info
+
+    def _next_run(self) -> None:
+        """The next run starts from the last rest pose seen, with an empty history."""
+        last = self._obs[0, self.k].copy()
+        self._obs[:] = np.nan
+        self._actions[:] = np.nan
+        self._obs[0, 0] = last
+        self._t, self._run = 0, self._run + 1
 
     def _features(self) -> np.ndarray:
         return history_features(self._obs, self._actions, self._lengths, self._t, self.workspace)[0]
@@ -148,6 +168,12 @@ class PolicyConfig:
     deviation of 1 on a [-1, 1] box most sampled pushes are far from the policy's mean, and
     fast pushes near the joint tip the chain over (reward 0): PPO then learns to push
     slowly, which teaches the predictor least. 0.22 keeps the search local."""
+    runs: int = 1
+    """Runs of the setting's pushes per training episode, on one chain [ours; issue 28]: each
+    run starts where the last left the chain, the history and the predictor restarting, the
+    policy's LSTM state kept, and a chain lost in any run ends the episode, so that a push
+    leaving the chain where a later run loses it pays for that. A stationary robot's policy
+    deployed as runs of the policy (`run_segments`) needs it; 1 is the paper's episode."""
     initial_action: tuple[float, float] = (0.5, 0.5)
     """The policy's initial mean action [ours; docs/training.md]. The zero action is a
     saddle in both coordinates: the speed is 5 |a1| and the sign of a1 only picks the side,
@@ -169,6 +195,10 @@ class PolicyConfig:
                 f"learning_rate must be > 0 and n_epochs >= 1, got {self.learning_rate}, "
                 f"{self.n_epochs}"
             )
+        if self.runs < 1:
+            raise ValueError(f"runs must be >= 1, got {self.runs}")
+        if self.runs > 1 and self.algo != "recurrent":
+            raise ValueError("runs > 1 needs the recurrent policy: it remembers earlier runs")
         if self.n_envs < 1 or self.steps < 1 or (self.n_steps is not None and self.n_steps < 2):
             raise ValueError(
                 f"n_envs and steps must be >= 1 and n_steps >= 2, got {self.n_envs}, "
@@ -183,16 +213,17 @@ class PolicyConfig:
 
 def make_vec_env(
     env_config: EnvConfig, predictor_path: str | os.PathLike, n_envs: int, seed: int,
-    chain_env: ChainEnvFactory | None = None, workers: Workers = None,
+    chain_env: ChainEnvFactory | None = None, workers: Workers = None, runs: int = 1,
 ):  # fmt: skip
     """`n_envs` pushing episodes: for a pusher with a batch path in lockstep on the
-    multi-threaded batch path (`masspush.learn.vec_env`), for an arm or in another world
-    (`chain_env`) as PushPolicyEnvs in worker processes, or in a cluster's actors where
-    `workers` is a pool that has them (`RayPool.vec_env`: the same transitions)."""
+    multi-threaded batch path (`masspush.learn.vec_env`), for an arm, in another world
+    (`chain_env`) or with several runs per episode (`runs`) as PushPolicyEnvs in worker
+    processes, or in a cluster's actors where `workers` is a pool that has them
+    (`RayPool.vec_env`: the same transitions)."""
     from stable_baselines3.common.env_util import make_vec_env as sb3_make_vec_env
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor
 
-    if pusher_kind(env_config.pusher).batch and chain_env is None:
+    if pusher_kind(env_config.pusher).batch and chain_env is None and runs == 1:
         vec = BatchPushVecEnv(env_config, str(predictor_path), n_envs, seed)
         vec.seed(seed)
         return VecMonitor(vec)
@@ -209,6 +240,7 @@ def make_vec_env(
             "env_config": env_config,
             "predictor_path": str(predictor_path),
             "chain_env": chain_env,
+            "runs": runs,
         },
         vec_env_kwargs={"start_method": "fork"} if vec_cls is SubprocVecEnv else None,
     )
@@ -306,7 +338,7 @@ def train_policy(
     if final.exists():
         return final
     vec_env = make_vec_env(
-        env_config, predictor_path, config.n_envs, config.seed, chain_env, workers
+        env_config, predictor_path, config.n_envs, config.seed, chain_env, workers, config.runs
     )
     try:
         checkpoints = sorted(out.glob("checkpoint_*_steps.zip"), key=_checkpoint_steps)
@@ -408,11 +440,13 @@ class LearnedPolicy:
 
     def __init__(
         self, path: str | os.PathLike, algo: str, deterministic: bool = True,
-        pusher: str | None = None,
+        pusher: str | None = None, runs: int = 1,
     ):  # fmt: skip
         """`pusher`: the pusher it was trained with (a stationary robot's policy also sees
-        where the chain lies from the robot; `history_features`)."""
+        where the chain lies from the robot; `history_features`); `runs`: the runs per
+        episode it was trained on (`PolicyConfig.runs`: its memory spans that many runs)."""
         self.path, self.algo, self.deterministic = str(path), algo, deterministic
+        self.runs = runs
         self.workspace = None if pusher is None else pusher_kind(pusher).workspace
         self.name = f"learned:{Path(path).name}"
         self._model = None
@@ -466,7 +500,11 @@ def model_policy(meta: dict[str, Any], model_file: str | os.PathLike) -> Policy:
         if not policy_file.exists():
             raise ValueError(f"{model_file} needs its policy file {policy_file}, which is missing")
         return LearnedPolicy(
-            policy_file, meta["policy_algo"], deterministic=True, pusher=meta.get("pusher")
+            policy_file,
+            meta["policy_algo"],
+            deterministic=True,
+            pusher=meta.get("pusher"),
+            runs=meta.get("policy_runs", 1),
         )
     if name not in POLICIES:
         raise ValueError(f"{model_file} names an unknown policy {name!r}")

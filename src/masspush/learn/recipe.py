@@ -111,11 +111,14 @@ class Recipe:
         return {"config": self._identity(), "timings": {}, "history": []}
 
     def _identity(self) -> dict[str, Any]:
-        return json.loads(
+        identity = json.loads(
             json.dumps(
                 {"setting": self.setting.as_dict(), "pusher": self.pusher, **asdict(self.config)}
             )
         )
+        if identity["policy"]["runs"] == 1:
+            del identity["policy"]["runs"]  # as runs made before the field existed say it
+        return identity
 
     def _save(self, state: dict[str, Any]) -> None:
         tmp = self.state_path.with_suffix(".tmp")
@@ -192,7 +195,8 @@ class Recipe:
         return state
 
     def _learned(self, i: int, deterministic: bool = True) -> LearnedPolicy:
-        return LearnedPolicy(self.policy(i), self.config.policy.algo, deterministic, self.pusher)
+        policy = self.config.policy
+        return LearnedPolicy(self.policy(i), policy.algo, deterministic, self.pusher, policy.runs)
 
     def _collect(self, name: str, episodes: int, policy, stream: int) -> None:
         collect(
@@ -245,6 +249,8 @@ class Recipe:
             # Relative to the model file, so that a copied pair of files stays a pair.
             meta["policy_file"] = f"../policy-{policy_index}/policy.zip"
             meta["policy_algo"] = self.config.policy.algo
+            if self.config.policy.runs > 1:
+                meta["policy_runs"] = self.config.policy.runs
         start = load_model(init)[0] if init is not None else None
         train_predictor(
             episodes, self.predictor(i).parent, train, meta, progress=self.progress, init=start

@@ -256,7 +256,9 @@ def train_randomised_policy(
         ),
     )
     pushing = root / "pushing-model.pt"
-    save_model(pushing, model, {**meta, "policy_file": str(policy.relative_to(root))})
+    # Its policy was fine-tuned on one run per episode, whatever the original's.
+    kept = {k: v for k, v in meta.items() if k != "policy_runs"}
+    save_model(pushing, model, {**kept, "policy_file": str(policy.relative_to(root))})
     return pushing
 
 

@@ -154,11 +154,13 @@ def run_estimation(
     on_push: PushCallback | None = None,
     start: RestPose | None = None,
     seed: int = 0,
+    fresh: bool = True,
 ) -> EstimationEpisode:
     """One episode: the policy picks each push from what has been seen, the robot executes
     it, and the predictor estimates the mass distribution after it. `on_push(k, action,
     report, estimate)` hears of every push as it happens (estimate None for a failed push);
-    `start` is the episode's first rest pose when the caller has started the robot."""
+    `start` is the episode's first rest pose when the caller has started the robot; `fresh`
+    False keeps the policy's memory of the run before (`run_segments`)."""
     rest = start if start is not None else robot.start()
     episode = EstimationEpisode(rest)
     d = len(rest.config)
@@ -166,7 +168,8 @@ def run_estimation(
     chosen = np.full((1, pushes, 2), np.nan, np.float32)
     observed[0, 0] = rest.config
     lengths = rest.lengths[None].astype(np.float32)
-    policy.reset(np.array([seed], np.uint64))
+    if fresh:
+        policy.reset(np.array([seed], np.uint64))
     for k in range(pushes):
         action = np.asarray(policy.act(observed, chosen, k, lengths)[0], np.float32)
         result = robot.push(action)
@@ -196,15 +199,26 @@ def run_segments(
     """`segments` episodes of `pushes` pushes in a row on the same chain, each starting where
     the last one left it, the policy and the predictor starting afresh each time: one
     episode of up to segments x pushes pushes (`masspush.real.finetune.segments_of` cuts it back).
-    Its estimates are each segment's own. With one segment this is `run_estimation`."""
+    Its estimates are each segment's own. With one segment this is `run_estimation`.
+
+    A policy trained on episodes of several runs (its `runs`, `PolicyConfig.runs`) keeps its
+    memory across that many runs, as in its training; others start afresh every run."""
     if segments < 1:
         raise ValueError(f"segments must be >= 1, got {segments}")
+    runs = getattr(policy, "runs", 1)
     rest = robot.start()
     whole = EstimationEpisode(rest)
     for s in range(segments):
         told = None if on_push is None else _numbered_from(s * pushes, on_push)
         part = run_estimation(
-            robot, predictor, policy, pushes, told, start=rest, seed=seed * segments + s
+            robot,
+            predictor,
+            policy,
+            pushes,
+            told,
+            start=rest,
+            seed=seed * segments + s,
+            fresh=s % runs == 0,
         )
         whole.actions += part.actions
         whole.reports += part.reports

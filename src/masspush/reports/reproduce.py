@@ -6,7 +6,10 @@ whatever is missing (both resume) and then writes:
 - results/table1.md and results/table1.csv: RP, RP+, TP, TP+ per setting, ours and the paper's;
 - results/meta-iterations.png: error after each meta-iteration (2-link and 3-link panels);
 - results/ppo-error.png: the frozen predictor's error on the policy's episodes during PPO;
-- results/recipe-times.md: wall-clock minutes per kind of stage of each finished run.
+- results/recipe-times.md: wall-clock minutes per kind of stage of each finished run;
+- results/runs/<setting>-<pusher>-train.json: each run's record (its state and PPO progress),
+  small and committed, so that the table and figures outlive the run directories (bulky,
+  not in git); a run directory, where there is one, is read before its record.
 """
 
 from __future__ import annotations
@@ -84,7 +87,9 @@ def ship_recipe(run: Recipe) -> list[Path]:
     if rp.exists():
         meta = load_model(rp)[1]
         has_rp = meta.get("pusher") == run.pusher and meta.get("setting") == run.setting.as_dict()
-    return ship(run.setting.name, run.exports(shipped_rp=has_rp))
+    shipped = ship(run.setting.name, run.exports(shipped_rp=has_rp))
+    write_record(Path(run.dir), run.setting.name, run.pusher)
+    return shipped
 
 
 @dataclass(frozen=True)
@@ -128,13 +133,54 @@ def train_dir(setting: str, pusher: str, root: str | Path = ".") -> Path:
     return Path(root) / "runs" / f"{setting}-{pusher}-train"
 
 
+def record_path(setting: str, pusher: str, root: str | Path = ".") -> Path:
+    """The committed record of a setting's recipe run."""
+    return Path(root) / "results" / "runs" / f"{setting}-{pusher}-train.json"
+
+
+def run_record(run_dir: Path) -> dict[str, Any] | None:
+    """A run directory's state and each policy's PPO progress (rows of timesteps and
+    error), or None where it has no state."""
+    state = _load(run_dir / "state.json")
+    if state is None:
+        return None
+    policies = sorted(run_dir.glob("policy-*"), key=lambda p: int(p.name.split("-")[1]))
+    progress = {p.name: _read_progress(p / "progress.csv") for p in policies}
+    return {"state": state, "progress": progress}
+
+
+def write_record(run_dir: Path, setting: str, pusher: str, root: str | Path = ".") -> Path | None:
+    """Record a run directory's state and progress as the setting's run in results/runs
+    (when it has a state)."""
+    record = run_record(run_dir)
+    if record is None:
+        return None
+    path = record_path(setting, pusher, root)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(record, indent=1) + "\n")
+    return path
+
+
+def load_record(setting: str, pusher: str, root: str | Path = ".") -> dict[str, Any] | None:
+    """A setting's run: from its run directory where there is one, else from its record."""
+    return run_record(train_dir(setting, pusher, root)) or _load(record_path(setting, pusher, root))
+
+
+def _state(setting: str, pusher: str, root) -> dict[str, Any] | None:
+    record = load_record(setting, pusher, root)
+    return None if record is None else record["state"]
+
+
 def _load(path: Path) -> dict[str, Any] | None:
     return json.loads(path.read_text()) if path.exists() else None
 
 
 def collect_rows(settings: Sequence[str], pushers: dict[str, str], root=".") -> list[dict]:
-    """One row per setting: our four errors (None where not run yet) and the paper's."""
+    """One row per setting: our four errors (None where not run yet) and the paper's. A
+    setting with neither a run directory nor a record keeps its row of the last table
+    written (results/table1.csv), marked as carried over."""
     rows = []
+    earlier = _earlier_rows(Path(root) / "results" / "table1.csv")
     for setting in settings:
         pusher = pushers[setting]
         row: dict[str, Any] = {"setting": setting, "pusher": pusher}
@@ -142,7 +188,13 @@ def collect_rows(settings: Sequence[str], pushers: dict[str, str], root=".") -> 
         for name in ("rp", "rp+"):
             row[name] = base["models"][name]["percentage_error"] if base else None
         row["constant_floor"] = base["models"]["rp"]["constant_floor"] if base else None
-        state = _load(train_dir(setting, pusher, root) / "state.json")
+        for name in COLUMNS:
+            row[f"paper_{name}"] = PAPER_TABLE[setting][name]
+        state = _state(setting, pusher, root)
+        if state is None and (setting, pusher) in earlier:
+            # Measured by a run whose directory is gone and which predates the records.
+            rows.append({**row, **earlier[setting, pusher], "carried": True})
+            continue
         by_stage = {h["stage"]: h for h in (state or {}).get("history", [])}
         row["tp"] = by_stage.get("predictor-1", {}).get("percentage_error")
         row["tp+"] = by_stage.get("predictor-final", {}).get("percentage_error")
@@ -157,10 +209,30 @@ def collect_rows(settings: Sequence[str], pushers: dict[str, str], root=".") -> 
         row["train_minutes"] = (
             round(sum(state["timings"].values()) / 60, 1) if state and row["tp+"] else None
         )
-        for name in COLUMNS:
-            row[f"paper_{name}"] = PAPER_TABLE[setting][name]
         rows.append(row)
     return rows
+
+
+def _earlier_rows(path: Path) -> dict[tuple[str, str], dict[str, Any]]:
+    """TP, TP+, recipe and its time per (setting, pusher) from a table1.csv written before."""
+    if not path.exists():
+        return {}
+    with path.open() as f:
+        rows = list(csv.DictReader(f))
+
+    def number(value: str) -> float | None:
+        return float(value) if value else None
+
+    return {
+        (r["setting"], r["pusher"]): {
+            "tp": number(r["tp"]),
+            "tp+": number(r["tp+"]),
+            "recipe": r["recipe"] or None,
+            "train_minutes": number(r["train_minutes"]),
+        }
+        for r in rows
+        if r.get("tp+")
+    }
 
 
 def _cell(value: float | None) -> str:
@@ -176,6 +248,8 @@ def table_markdown(rows: list[dict]) -> str:
     for r in rows:
         cells = [f"**{_cell(r[n])}** / {r[f'paper_{n}']:.2f}" for n in COLUMNS]
         minutes = "" if r["train_minutes"] is None else f"{r['train_minutes']} min"
+        if r.get("carried"):
+            minutes += " (carried over)"
         floor = "" if r["constant_floor"] is None else f"{r['constant_floor']:.2f}"
         lines.append(
             f"| {r['setting']} | {r['pusher']} | {' | '.join(cells)} | {floor} "
@@ -207,8 +281,12 @@ def timings_markdown(settings: Sequence[str], pushers: dict[str, str], root=".")
         "| setting | recipe | " + " | ".join(STAGE_GROUPS.values()) + " | total |",
         "|---|---|" + "---|" * (len(STAGE_GROUPS) + 1),
     ]
+    earlier = _earlier_timing_lines(Path(root) / "results" / "recipe-times.md")
     for setting in settings:
-        state = _load(train_dir(setting, pushers[setting], root) / "state.json")
+        state = _state(setting, pushers[setting], root)
+        if state is None and setting in earlier:
+            lines.append(earlier[setting])  # carried over, as in the table (`collect_rows`)
+            continue
         if not state or "evaluate-final" not in state["timings"]:
             continue
         minutes = dict.fromkeys(STAGE_GROUPS, 0.0)
@@ -221,9 +299,17 @@ def timings_markdown(settings: Sequence[str], pushers: dict[str, str], root=".")
     return "\n".join(lines)
 
 
+def _earlier_timing_lines(path: Path) -> dict[str, str]:
+    """The rows of a recipe-times.md written before, by setting."""
+    if not path.exists():
+        return {}
+    rows = [line for line in path.read_text().splitlines()[2:] if line.startswith("| ")]
+    return {line.split("|")[1].strip(): line for line in rows}
+
+
 def write_csv(rows: list[dict], path: Path) -> None:
     keys = ["setting", "pusher", *COLUMNS, *(f"paper_{n}" for n in COLUMNS)]
-    keys += ["constant_floor", "recipe", "train_minutes"]
+    keys += ["constant_floor", "recipe", "train_minutes", "carried"]
     with path.open("w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=keys, extrasaction="ignore")
         writer.writeheader()
@@ -239,8 +325,10 @@ def plot_meta_iterations(settings, pushers, root, path: Path) -> None:
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=False)
     for ax, links in zip(axes, ("2link", "3link"), strict=True):
+        missing = []
         for setting in (s for s in settings if s.startswith(links)):
-            state = _load(train_dir(setting, pushers[setting], root) / "state.json")
+            state = _state(setting, pushers[setting], root)
+            missing += [setting] if state is None else []
             history = [
                 h
                 for h in (state or {}).get("history", [])
@@ -254,6 +342,7 @@ def plot_meta_iterations(settings, pushers, root, path: Path) -> None:
             if final:
                 ax.plot(x[-1] + 0.5, final["percentage_error"], "*", ms=12, color=line.get_color())
             ax.axhline(PAPER_TABLE[setting]["tp+"], ls=":", color=line.get_color(), lw=1)
+        _say_missing(ax, missing)
         ax.set(title=f"{links[0]}-link chains", xlabel="meta-iteration (0: random pushes)")
         ax.set_ylabel("percentage error (paper's metric)")
         ax.grid(alpha=0.3)
@@ -272,16 +361,20 @@ def plot_ppo_error(settings, pushers, root, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(7, 4))
+    missing = []
     for setting in settings:
-        run = train_dir(setting, pushers[setting], root)
+        record = load_record(setting, pushers[setting], root)
+        if record is None:
+            missing.append(setting)
+            continue
         xs, ys, offset = [], [], 0
-        for policy_dir in sorted(run.glob("policy-*"), key=lambda p: int(p.name.split("-")[1])):
-            rows = _read_progress(policy_dir / "progress.csv")
+        for rows in record["progress"].values():
             xs += [offset + t for t, _ in rows]
             ys += [e for _, e in rows]
             offset += rows[-1][0] if rows else 0
         if xs:
             ax.plot(xs, ys, label=setting, lw=1)
+    _say_missing(ax, missing)
     ax.set(xlabel="PPO steps (pushes), all meta-iterations", ylabel="percentage error")
     ax.set_title("Predictor error on the policy's episodes during PPO")
     ax.grid(alpha=0.3)
@@ -290,6 +383,14 @@ def plot_ppo_error(settings, pushers, root, path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+def _say_missing(ax, missing: list[str]) -> None:
+    """Name, in the panel, the settings with neither a run directory nor a record (runs
+    from before the records: their rows in the table are carried over, their curves lost)."""
+    if missing:
+        ax.text(0.02, 0.02, "no run record: " + ", ".join(missing), transform=ax.transAxes,
+                fontsize=7, color="0.4", va="bottom")  # fmt: skip
 
 
 def _read_progress(path: Path) -> list[tuple[int, float]]:
@@ -303,6 +404,7 @@ def _read_progress(path: Path) -> list[tuple[int, float]]:
 def write_outputs(settings, pushers, root=".", out_dir: str | Path = "results") -> list[Path]:
     out = Path(root) / out_dir
     out.mkdir(parents=True, exist_ok=True)
+    recorded = [write_record(train_dir(s, pushers[s], root), s, pushers[s], root) for s in settings]
     rows = collect_rows(settings, pushers, root)
     paths = [out / "table1.md", out / "table1.csv", out / "meta-iterations.png"]
     paths[0].write_text(table_markdown(rows) + "\n")
@@ -312,4 +414,4 @@ def write_outputs(settings, pushers, root=".", out_dir: str | Path = "results") 
     plot_ppo_error(settings, pushers, root, paths[3])
     paths.append(out / "recipe-times.md")
     paths[4].write_text(timings_markdown(settings, pushers, root) + "\n")
-    return paths
+    return paths + [path for path in recorded if path is not None]
