@@ -306,6 +306,20 @@ def test_a_push_near_a_singular_pose_is_unreachable_not_endless(monkeypatch):
     assert outcome.failure == "unreachable" and outcome.steps == 0
 
 
+def test_a_push_from_an_exactly_singular_pose_is_unreachable_not_a_crash(monkeypatch):
+    # A Jacobian with no inverse (met once in a training run: LinAlgError killed a worker).
+    # A speed of 0 then makes the push unreachable (the test above).
+    sim = stationary_sim((0.0, 0.0, 0.3))
+    pusher, model, data = sim.pusher, sim.model, sim.data
+    h = pusher._h(model)
+    q = data.qpos[h.qadr].copy()
+    direction = np.array([0.0, 1.0, 0.0])
+    assert pusher._speed_within_joint_limits(model, data, h, q, direction, 2.0) > 0
+    monkeypatch.setattr(pusher, "_jacobian", lambda *a: np.zeros((6, 6)))
+    assert pusher._speed_within_joint_limits(model, data, h, q, direction, 2.0) == 0.0
+    np.testing.assert_array_equal(data.qpos[h.qadr], q)  # the arm's pose as it was
+
+
 def test_a_slowed_push_runs_up_for_the_speed_it_will_have():
     sim = stationary_sim((0.0, 0.0, 0.3))
     sim.push(np.array([1.0, 0.3]))

@@ -370,10 +370,15 @@ class ArmPusher:
         data.qpos[h.qadr] = q
         mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)
-        joint_rates = np.linalg.solve(
-            self._jacobian(model, data, h), np.concatenate([direction * speed, np.zeros(3)])
-        )
+        try:
+            joint_rates = np.linalg.solve(
+                self._jacobian(model, data, h), np.concatenate([direction * speed, np.zeros(3)])
+            )
+        except np.linalg.LinAlgError:
+            joint_rates = None  # exactly singular (seen once in 800k training pushes)
         data.qpos[h.qadr] = saved  # as `_solve_ik`: the next step recomputes the rest
+        if joint_rates is None:
+            return 0.0  # no tip speed can be had in this pose: the push is unreachable
         limit = np.asarray(self.arm.joint_speed_limit)
         return speed * min(1.0, float(np.min(limit / np.maximum(np.abs(joint_rates), 1e-12))))
 
