@@ -191,9 +191,10 @@ def test_a_policy_trains_on_episodes_of_runs(predictor_file, tmp_path):
 
     from masspush.learn.policy import make_vec_env
 
-    vec = make_vec_env(CONFIG, predictor_file, 2, 0, runs=3)
+    vec = make_vec_env(CONFIG, predictor_file, 2, 0, runs=3, reward="gain")
     try:
-        assert vec.get_attr("runs") == [3, 3]  # not the batch path, which has no runs
+        # Not the batch path, which has neither.
+        assert vec.get_attr("runs") == [3, 3] and vec.get_attr("reward") == ["gain"] * 2
     finally:
         vec.close()
     config = PolicyConfig(n_envs=2, steps=16, n_steps=8, runs=3)
@@ -219,7 +220,19 @@ def test_a_policy_trained_on_runs_says_so_to_its_deployment(tmp_path):
     assert model_policy({**meta, "policy_runs": 8}, tmp_path / "m.pt").runs == 8
 
 
+def test_the_gain_reward_pays_what_a_push_taught_over_the_prior():
+    truth = np.array([0.2, 0.8])
+    assert push_reward(np.array([0.5, 0.5]), truth, None, "gain") == pytest.approx(0.0)
+    perfect = push_reward(truth, truth, None, "gain")
+    assert perfect == pytest.approx(10.0 - paper_reward(np.array([0.5, 0.5]), truth))
+    assert push_reward(truth, truth, None) - perfect == pytest.approx(4.0)  # the prior's 4
+    # A loss costs the same under both.
+    assert push_reward(None, truth, "left_workspace", "gain") == LOSS_REWARD
+
+
 def test_bad_policy_configs_are_refused():
+    with pytest.raises(ValueError, match="reward"):
+        PolicyConfig(reward="speed")
     with pytest.raises(ValueError, match="runs"):
         PolicyConfig(runs=0)
     with pytest.raises(ValueError, match="recurrent"):

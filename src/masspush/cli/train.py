@@ -53,8 +53,9 @@ def _recipe_options(p: argparse.ArgumentParser) -> None:
     from masspush.learn.policy import PolicyConfig
     from masspush.learn.recipe import RecipeConfig
 
-    add_fields(p, PolicyConfig, only=("algo", "steps", "n_envs", "runs"), prefix="policy_",
-               rename={"steps": "ppo_steps", "n_envs": "envs", "runs": "policy_runs"})  # fmt: skip
+    renamed = {"steps": "ppo_steps", "n_envs": "envs", "runs": "policy_runs",
+               "reward": "policy_reward"}  # fmt: skip
+    add_fields(p, PolicyConfig, only=("algo", *renamed), prefix="policy_", rename=renamed)
     add_fields(p, RecipeConfig, only=RECIPE_FIELDS)
 
 

@@ -29,7 +29,7 @@ import numpy as np
 from masspush.cluster.pool import Workers, is_pool
 from masspush.config import EnvConfig
 from masspush.data.rollout import POLICIES, Episodes, Policy
-from masspush.learn.features import history_dim, history_features, push_reward
+from masspush.learn.features import REWARDS, history_dim, history_features, push_reward
 from masspush.learn.vec_env import BatchPushVecEnv
 from masspush.sim.pushers import pusher_kind
 
@@ -77,7 +77,7 @@ class PushPolicyEnv(gym.Env):
 
     def __init__(
         self, env_config: EnvConfig, predictor_path: str,
-        chain_env: ChainEnvFactory | None = None, runs: int = 1,
+        chain_env: ChainEnvFactory | None = None, runs: int = 1, reward: str = "paper",
     ):  # fmt: skip
         import torch
 
@@ -88,6 +88,9 @@ class PushPolicyEnv(gym.Env):
             raise ValueError(f"runs must be >= 1, got {runs}")
         if runs > 1 and chain_env is not None:
             raise ValueError("runs > 1 needs the training simulation, not another world")
+        if reward not in REWARDS:
+            raise ValueError(f"reward must be one of {REWARDS}, got {reward!r}")
+        self.reward = reward
         torch.set_num_threads(1)
         physics = env_config.physics
         self.env_config, self.runs = env_config, runs
@@ -122,12 +125,13 @@ class PushPolicyEnv(gym.Env):
         self._actions[0, self._t] = action
         if info["failure"] is not None:
             self._t += 1
-            return self._features(), push_reward(None, None, info["failure"]), True, False, info
+            reward = push_reward(None, None, info["failure"], self.reward)
+            return self._features(), reward, True, False, info
         self._obs[0, self._t + 1] = obs[: self.d]
         self._t += 1
         history = Episodes.history(self._obs, np.nan_to_num(self._actions), self._lengths)
         estimate = self.predictor.predict(history)[0, self._t - 1]
-        reward = push_reward(estimate, self._truth, None)
+        reward = push_reward(estimate, self._truth, None, self.reward)
         info["estimate"] = estimate
         if self._t == self.k and self._run + 1 < self.runs:
             self._next_run()
@@ -174,6 +178,9 @@ class PolicyConfig:
     policy's LSTM state kept, and a chain lost in any run ends the episode, so that a push
     leaving the chain where a later run loses it pays for that. A stationary robot's policy
     deployed as runs of the policy (`run_segments`) needs it; 1 is the paper's episode."""
+    reward: str = "paper"
+    """"paper" (the paper's reward) or "gain" (the paper's minus the prior's guess: a push
+    that teaches nothing earns about 0) [ours, for episodes of many runs; `push_reward`]."""
     initial_action: tuple[float, float] = (0.5, 0.5)
     """The policy's initial mean action [ours; docs/training.md]. The zero action is a
     saddle in both coordinates: the speed is 5 |a1| and the sign of a1 only picks the side,
@@ -197,6 +204,8 @@ class PolicyConfig:
             )
         if self.runs < 1:
             raise ValueError(f"runs must be >= 1, got {self.runs}")
+        if self.reward not in REWARDS:
+            raise ValueError(f"reward must be one of {REWARDS}, got {self.reward!r}")
         if self.runs > 1 and self.algo != "recurrent":
             raise ValueError("runs > 1 needs the recurrent policy: it remembers earlier runs")
         if self.n_envs < 1 or self.steps < 1 or (self.n_steps is not None and self.n_steps < 2):
@@ -214,16 +223,18 @@ class PolicyConfig:
 def make_vec_env(
     env_config: EnvConfig, predictor_path: str | os.PathLike, n_envs: int, seed: int,
     chain_env: ChainEnvFactory | None = None, workers: Workers = None, runs: int = 1,
+    reward: str = "paper",
 ):  # fmt: skip
     """`n_envs` pushing episodes: for a pusher with a batch path in lockstep on the
     multi-threaded batch path (`masspush.learn.vec_env`), for an arm, in another world
-    (`chain_env`) or with several runs per episode (`runs`) as PushPolicyEnvs in worker
-    processes, or in a cluster's actors where `workers` is a pool that has them
-    (`RayPool.vec_env`: the same transitions)."""
+    (`chain_env`), with several runs per episode (`runs`) or another `reward` as
+    PushPolicyEnvs in worker processes, or in a cluster's actors where `workers` is a pool
+    that has them (`RayPool.vec_env`: the same transitions)."""
     from stable_baselines3.common.env_util import make_vec_env as sb3_make_vec_env
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor
 
-    if pusher_kind(env_config.pusher).batch and chain_env is None and runs == 1:
+    batch = pusher_kind(env_config.pusher).batch and chain_env is None
+    if batch and runs == 1 and reward == "paper":
         vec = BatchPushVecEnv(env_config, str(predictor_path), n_envs, seed)
         vec.seed(seed)
         return VecMonitor(vec)
@@ -241,6 +252,7 @@ def make_vec_env(
             "predictor_path": str(predictor_path),
             "chain_env": chain_env,
             "runs": runs,
+            "reward": reward,
         },
         vec_env_kwargs={"start_method": "fork"} if vec_cls is SubprocVecEnv else None,
     )
@@ -338,8 +350,9 @@ def train_policy(
     if final.exists():
         return final
     vec_env = make_vec_env(
-        env_config, predictor_path, config.n_envs, config.seed, chain_env, workers, config.runs
-    )
+        env_config, predictor_path, config.n_envs, config.seed, chain_env, workers,
+        config.runs, config.reward,
+    )  # fmt: skip
     try:
         checkpoints = sorted(out.glob("checkpoint_*_steps.zip"), key=_checkpoint_steps)
         start = checkpoints[-1] if checkpoints else init

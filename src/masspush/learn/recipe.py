@@ -116,8 +116,9 @@ class Recipe:
                 {"setting": self.setting.as_dict(), "pusher": self.pusher, **asdict(self.config)}
             )
         )
-        if identity["policy"]["runs"] == 1:
-            del identity["policy"]["runs"]  # as runs made before the field existed say it
+        for name, before in (("runs", 1), ("reward", "paper")):
+            if identity["policy"][name] == before:
+                del identity["policy"][name]  # as runs made before the field existed say it
         return identity
 
     def _save(self, state: dict[str, Any]) -> None:
