@@ -82,9 +82,10 @@ def test_losing_the_chain_costs_more_than_any_estimate_gains():
 
 
 @pytest.mark.slow
-def test_a_policy_environment_for_a_stationary_robot_pays_for_a_lost_chain(predictor_file):
+@pytest.mark.parametrize("loss", [LOSS_REWARD, -30.0])
+def test_a_policy_environment_for_a_stationary_robot_pays_for_a_lost_chain(predictor_file, loss):
     config = EnvConfig(physics=get_setting("real-ur10").physics(), pusher="ur10-stationary")
-    env = PushPolicyEnv(config, str(predictor_file))
+    env = PushPolicyEnv(config, str(predictor_file), loss_reward=loss)
     assert env.observation_space.shape == (history_dim(2, 2, env.workspace),)
     env.reset(seed=0, options=None)
     # Full speed away from the base on a light chain near the workspace's edge.
@@ -92,7 +93,7 @@ def test_a_policy_environment_for_a_stationary_robot_pays_for_a_lost_chain(predi
                                  "joint_angles": [0.0], "lengths": [0.12, 0.12],
                                  "friction": 0.5})  # fmt: skip
     _, reward, done, _, info = env.step(np.array([1.0, -0.5], np.float32))
-    assert done and info["failure"] == "left_workspace" and reward == LOSS_REWARD
+    assert done and info["failure"] == "left_workspace" and reward == loss
 
 
 @pytest.mark.slow
@@ -226,13 +227,17 @@ def test_the_gain_reward_pays_what_a_push_taught_over_the_prior():
     perfect = push_reward(truth, truth, None, "gain")
     assert perfect == pytest.approx(10.0 - paper_reward(np.array([0.5, 0.5]), truth))
     assert push_reward(truth, truth, None) - perfect == pytest.approx(4.0)  # the prior's 4
-    # A loss costs the same under both.
+    # A loss costs the same under both, and what it is told to.
     assert push_reward(None, truth, "left_workspace", "gain") == LOSS_REWARD
+    assert push_reward(None, truth, "unreachable", "gain", loss=-30.0) == -30.0
+    assert push_reward(None, truth, "unstable", "gain", loss=-30.0) == 0.0  # not a loss
 
 
 def test_bad_policy_configs_are_refused():
     with pytest.raises(ValueError, match="reward"):
         PolicyConfig(reward="speed")
+    with pytest.raises(ValueError, match="loss_reward"):
+        PolicyConfig(loss_reward=5.0)
     with pytest.raises(ValueError, match="runs"):
         PolicyConfig(runs=0)
     with pytest.raises(ValueError, match="recurrent"):

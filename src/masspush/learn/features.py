@@ -37,10 +37,11 @@ REWARDS = ("paper", "gain")
 
 
 def push_reward(
-    predicted: np.ndarray, truth: np.ndarray, failure: str | None, reward: str = "paper"
-) -> float:
-    """One push's reward: the paper's for a push that succeeded, `LOSS_REWARD` for one that
-    lost the chain to a stationary robot, 0 for another failure (the chain's own).
+    predicted: np.ndarray, truth: np.ndarray, failure: str | None, reward: str = "paper",
+    loss: float = LOSS_REWARD,
+) -> float:  # fmt: skip
+    """One push's reward: the paper's for a push that succeeded, `loss` (`LOSS_REWARD`) for
+    one that lost the chain to a stationary robot, 0 for another failure (the chain's own).
 
     `reward` "gain": a successful push earns the paper's reward minus that of the prior's
     guess (every link 1/n of the mass), so a push that teaches nothing earns about 0. With
@@ -52,7 +53,7 @@ def push_reward(
         if reward == "gain":
             earned -= float(paper_reward(np.full_like(truth, 1.0 / len(truth)), truth))
         return earned
-    return LOSS_REWARD if failure in REACH_FAILURES else 0.0
+    return loss if failure in REACH_FAILURES else 0.0
 
 
 def history_dim(n_links: int, pushes: int, workspace: Workspace | None = None) -> int:

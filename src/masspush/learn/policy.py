@@ -29,7 +29,13 @@ import numpy as np
 from masspush.cluster.pool import Workers, is_pool
 from masspush.config import EnvConfig
 from masspush.data.rollout import POLICIES, Episodes, Policy
-from masspush.learn.features import REWARDS, history_dim, history_features, push_reward
+from masspush.learn.features import (
+    LOSS_REWARD,
+    REWARDS,
+    history_dim,
+    history_features,
+    push_reward,
+)
 from masspush.learn.vec_env import BatchPushVecEnv
 from masspush.sim.pushers import pusher_kind
 
@@ -78,6 +84,7 @@ class PushPolicyEnv(gym.Env):
     def __init__(
         self, env_config: EnvConfig, predictor_path: str,
         chain_env: ChainEnvFactory | None = None, runs: int = 1, reward: str = "paper",
+        loss_reward: float = LOSS_REWARD,
     ):  # fmt: skip
         import torch
 
@@ -90,7 +97,7 @@ class PushPolicyEnv(gym.Env):
             raise ValueError("runs > 1 needs the training simulation, not another world")
         if reward not in REWARDS:
             raise ValueError(f"reward must be one of {REWARDS}, got {reward!r}")
-        self.reward = reward
+        self.reward, self.loss_reward = reward, loss_reward
         torch.set_num_threads(1)
         physics = env_config.physics
         self.env_config, self.runs = env_config, runs
@@ -125,7 +132,7 @@ class PushPolicyEnv(gym.Env):
         self._actions[0, self._t] = action
         if info["failure"] is not None:
             self._t += 1
-            reward = push_reward(None, None, info["failure"], self.reward)
+            reward = push_reward(None, None, info["failure"], self.reward, self.loss_reward)
             return self._features(), reward, True, False, info
         self._obs[0, self._t + 1] = obs[: self.d]
         self._t += 1
@@ -181,6 +188,10 @@ class PolicyConfig:
     reward: str = "paper"
     """"paper" (the paper's reward) or "gain" (the paper's minus the prior's guess: a push
     that teaches nothing earns about 0) [ours, for episodes of many runs; `push_reward`]."""
+    loss_reward: float = LOSS_REWARD
+    """The reward of a push after which a stationary robot lost the chain [ours: -10,
+    `LOSS_REWARD`]; lower makes a policy trained on runs keep the chain at the cost of
+    informative pushes (docs/notebook 2026-12-02-runs-of-the-policy)."""
     initial_action: tuple[float, float] = (0.5, 0.5)
     """The policy's initial mean action [ours; docs/training.md]. The zero action is a
     saddle in both coordinates: the speed is 5 |a1| and the sign of a1 only picks the side,
@@ -206,6 +217,8 @@ class PolicyConfig:
             raise ValueError(f"runs must be >= 1, got {self.runs}")
         if self.reward not in REWARDS:
             raise ValueError(f"reward must be one of {REWARDS}, got {self.reward!r}")
+        if not self.loss_reward <= 0:
+            raise ValueError(f"loss_reward must be <= 0, got {self.loss_reward}")
         if self.runs > 1 and self.algo != "recurrent":
             raise ValueError("runs > 1 needs the recurrent policy: it remembers earlier runs")
         if self.n_envs < 1 or self.steps < 1 or (self.n_steps is not None and self.n_steps < 2):
@@ -223,18 +236,18 @@ class PolicyConfig:
 def make_vec_env(
     env_config: EnvConfig, predictor_path: str | os.PathLike, n_envs: int, seed: int,
     chain_env: ChainEnvFactory | None = None, workers: Workers = None, runs: int = 1,
-    reward: str = "paper",
+    reward: str = "paper", loss_reward: float = LOSS_REWARD,
 ):  # fmt: skip
     """`n_envs` pushing episodes: for a pusher with a batch path in lockstep on the
     multi-threaded batch path (`masspush.learn.vec_env`), for an arm, in another world
-    (`chain_env`), with several runs per episode (`runs`) or another `reward` as
+    (`chain_env`), with several runs per episode (`runs`) or other rewards as
     PushPolicyEnvs in worker processes, or in a cluster's actors where `workers` is a pool
     that has them (`RayPool.vec_env`: the same transitions)."""
     from stable_baselines3.common.env_util import make_vec_env as sb3_make_vec_env
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor
 
     batch = pusher_kind(env_config.pusher).batch and chain_env is None
-    if batch and runs == 1 and reward == "paper":
+    if batch and runs == 1 and reward == "paper" and loss_reward == LOSS_REWARD:
         vec = BatchPushVecEnv(env_config, str(predictor_path), n_envs, seed)
         vec.seed(seed)
         return VecMonitor(vec)
@@ -253,6 +266,7 @@ def make_vec_env(
             "chain_env": chain_env,
             "runs": runs,
             "reward": reward,
+            "loss_reward": loss_reward,
         },
         vec_env_kwargs={"start_method": "fork"} if vec_cls is SubprocVecEnv else None,
     )
@@ -351,7 +365,7 @@ def train_policy(
         return final
     vec_env = make_vec_env(
         env_config, predictor_path, config.n_envs, config.seed, chain_env, workers,
-        config.runs, config.reward,
+        config.runs, config.reward, config.loss_reward,
     )  # fmt: skip
     try:
         checkpoints = sorted(out.glob("checkpoint_*_steps.zip"), key=_checkpoint_steps)

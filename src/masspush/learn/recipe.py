@@ -116,7 +116,7 @@ class Recipe:
                 {"setting": self.setting.as_dict(), "pusher": self.pusher, **asdict(self.config)}
             )
         )
-        for name, before in (("runs", 1), ("reward", "paper")):
+        for name, before in (("runs", 1), ("reward", "paper"), ("loss_reward", -10.0)):
             if identity["policy"][name] == before:
                 del identity["policy"][name]  # as runs made before the field existed say it
         return identity
