@@ -217,8 +217,8 @@ class PolicyConfig:
             raise ValueError(f"runs must be >= 1, got {self.runs}")
         if self.reward not in REWARDS:
             raise ValueError(f"reward must be one of {REWARDS}, got {self.reward!r}")
-        if not self.loss_reward <= 0:
-            raise ValueError(f"loss_reward must be <= 0, got {self.loss_reward}")
+        if not -1e6 <= self.loss_reward <= 0:
+            raise ValueError(f"loss_reward must be in [-1e6, 0], got {self.loss_reward}")
         if self.runs > 1 and self.algo != "recurrent":
             raise ValueError("runs > 1 needs the recurrent policy: it remembers earlier runs")
         if self.n_envs < 1 or self.steps < 1 or (self.n_steps is not None and self.n_steps < 2):

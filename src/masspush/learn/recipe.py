@@ -116,8 +116,9 @@ class Recipe:
                 {"setting": self.setting.as_dict(), "pusher": self.pusher, **asdict(self.config)}
             )
         )
-        for name, before in (("runs", 1), ("reward", "paper"), ("loss_reward", -10.0)):
-            if identity["policy"][name] == before:
+        defaults = PolicyConfig()
+        for name in ("runs", "reward", "loss_reward"):  # fields added after runs were made
+            if identity["policy"][name] == getattr(defaults, name):
                 del identity["policy"][name]  # as runs made before the field existed say it
         return identity
 

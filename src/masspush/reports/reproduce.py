@@ -167,8 +167,11 @@ def load_record(setting: str, pusher: str, root: str | Path = ".") -> dict[str, 
 
 
 def _state(setting: str, pusher: str, root) -> dict[str, Any] | None:
-    record = load_record(setting, pusher, root)
-    return None if record is None else record["state"]
+    """A setting's run state, as `load_record` finds it, without reading its PPO progress."""
+    state = _load(train_dir(setting, pusher, root) / "state.json")
+    if state is None:
+        state = (_load(record_path(setting, pusher, root)) or {}).get("state")
+    return state
 
 
 def _load(path: Path) -> dict[str, Any] | None:
