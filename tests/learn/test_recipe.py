@@ -68,12 +68,13 @@ def test_a_short_recipe_resumes_after_interruption_and_beats_the_floor(tmp_path,
     # shipped for the setting, predictor-0 ships as its random-push RP.
     models = tmp_path / "models"
     monkeypatch.setattr(models_module, "SHIPPED_DIR", models)
-    shipped = ship_recipe(Recipe(SETTING, "stiff", run, TINY, progress=False))
+    shipped = ship_recipe(Recipe(SETTING, "stiff", run, TINY, progress=False), root=tmp_path)
+    assert (tmp_path / "results" / "runs" / f"{SETTING.name}-stiff-train.json").exists()
     assert {p.name for p in shipped} == {
         "rp.pt", "tp.pt", "tp.policy.zip", "tp+.pt", "tp+.policy.zip"
     }  # fmt: skip
     assert load_model(models / SETTING.name / "rp.pt")[1]["policy"] == "random"
-    again = ship_recipe(Recipe(SETTING, "stiff", run, TINY, progress=False))
+    again = ship_recipe(Recipe(SETTING, "stiff", run, TINY, progress=False), root=tmp_path)
     assert "rp.pt" not in {p.name for p in again}  # an RP already there is kept
     _, meta = load_model(models / SETTING.name / "tp+.pt", setting=SETTING.name, pusher="stiff")
     assert meta["policy"] == "learned" and meta["setting"]["name"] == SETTING.name

@@ -78,7 +78,7 @@ def train_setting(job: TrainJob, recipe: RecipeConfig, log=print) -> list[str]:
     return lines
 
 
-def ship_recipe(run: Recipe) -> list[Path]:
+def ship_recipe(run: Recipe, root: str | Path = ".") -> list[Path]:
     """Ship a finished recipe's TP and TP+, and its predictor-0 as RP where none is shipped
     for this setting and pusher (none at all, or one of another pusher or setting's physics:
     an RP of another world would not be the baseline of these)."""
@@ -88,7 +88,7 @@ def ship_recipe(run: Recipe) -> list[Path]:
         meta = load_model(rp)[1]
         has_rp = meta.get("pusher") == run.pusher and meta.get("setting") == run.setting.as_dict()
     shipped = ship(run.setting.name, run.exports(shipped_rp=has_rp))
-    write_record(Path(run.dir), run.setting.name, run.pusher)
+    write_record(Path(run.dir), run.setting.name, run.pusher, root)
     return shipped
 
 
@@ -125,7 +125,7 @@ def reproduce(config: ReproduceConfig, recipe: RecipeConfig, root: str | Path = 
             run.run()
             if config.ship:
                 ship_baselines(s.name, pushers[s.name], root)
-                ship_recipe(run)
+                ship_recipe(run, root)
     return write_outputs(names, pushers, root)
 
 
