@@ -244,7 +244,9 @@ def make_vec_env(
     PushPolicyEnvs in worker processes, or in a cluster's actors where `workers` is a pool
     that has them (`RayPool.vec_env`: the same transitions)."""
     from stable_baselines3.common.env_util import make_vec_env as sb3_make_vec_env
-    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor
+
+    from masspush.learn.subproc_vec_env import WatchedSubprocVecEnv
 
     batch = pusher_kind(env_config.pusher).batch and chain_env is None
     if batch and runs == 1 and reward == "paper" and loss_reward == LOSS_REWARD:
@@ -252,7 +254,7 @@ def make_vec_env(
         vec.seed(seed)
         return VecMonitor(vec)
 
-    vec_cls = SubprocVecEnv if n_envs > 1 else DummyVecEnv
+    vec_cls = WatchedSubprocVecEnv if n_envs > 1 else DummyVecEnv
     if is_pool(workers) and hasattr(workers, "vec_env"):
         vec_cls = workers.vec_env
     return sb3_make_vec_env(
@@ -268,7 +270,7 @@ def make_vec_env(
             "reward": reward,
             "loss_reward": loss_reward,
         },
-        vec_env_kwargs={"start_method": "fork"} if vec_cls is SubprocVecEnv else None,
+        vec_env_kwargs={"start_method": "fork"} if vec_cls is WatchedSubprocVecEnv else None,
     )
 
 
