@@ -1,7 +1,7 @@
 """Does a stationary robot keep the chain over runs of the policy? Chains lost, per policy.
 
     python experiments/sim2real/runs_kept.py [--setting real-ur10] [--learned tp+] \
-        [--random rp] [--runs 1,8] [--chains 40] [--seed 777]
+        [--random rp] [--runs 1,8] [--chains 40] [--seed 777] [--settings-file F]
 
 The robot of the setting (the stationary UR10 of `real-ur10`) pushes `--chains` chains of the
 training world, each for R runs of the setting's pushes in a row (`run_segments`: the chain
@@ -32,8 +32,9 @@ def main() -> None:
     parser.add_argument("--runs", default="1,8")
     parser.add_argument("--chains", type=int, default=40)
     parser.add_argument("--seed", type=int, default=777)
+    parser.add_argument("--settings-file", help="TOML settings (e.g. an override of --setting)")
     args = parser.parse_args()
-    setting = get_setting(args.setting)
+    setting = get_setting(args.setting, args.settings_file)
     pushes = setting.env_config().pushes
     for runs in (int(r) for r in args.runs.split(",")):
         for model in (args.learned, args.random):

@@ -104,7 +104,11 @@ SETTINGS: dict[str, Setting] = {
 }
 
 REAL_SETTING = Setting(
-    "real-ur10", 2, (0.01, 0.3), {"root_xy_range": 0.2}, pusher="ur10-stationary"
+    "real-ur10",
+    2,
+    (0.01, 0.3),
+    {"root_xy_range": 0.2, "init_joint_range": 1.55},
+    pusher="ur10-stationary",
 )
 """The paper's real experiment, trained in simulation: a UR10 standing beside the table
 (`ur10-stationary`: it cannot follow the chain, and a chain out of its reach ends the
@@ -114,7 +118,11 @@ inside), hinge range +-pi/2 (our joint_limit, 1.55 rad, with self-collision at p
 their first link within 0.2 m of the origin, over most of the robot's workspace (95 % of
 them wholly inside it), so that its policy learns to push from anywhere in reach, as it must
 when runs of the policy follow one another [ours; with 0.1 m, 19 of 40 chains were lost
-over 8 runs, docs/notebook 2026-12-01-stationary-robot]."""
+over 8 runs, docs/notebook 2026-12-01-stationary-robot]. Start angles span the whole hinge
+range, as later runs find the chain (pushes fold it: |q| 0.71 rad on average at a later
+run's start against 0.36 with the paper's +-0.75) [ours, docs/notebook
+2026-12-02-runs-of-the-policy]. The robot's speed governor keeps the chain in reach
+(`masspush.sim.ReachGovernor`)."""
 
 REAL_SETTING_4 = Setting("real-ur10-4push", 2, (0.01, 0.3), pusher="ur10", pushes=4)
 """The real setup with 4 pushes per episode instead of the paper's 2 [ours]: whether more

@@ -65,3 +65,25 @@ def test_episodes_on_a_pool_are_the_episodes_run_here(serial_pool, pusher):
     pooled = run_episodes(config, RandomPolicy(), idx, EVAL, 2, workers=serial_pool(size=2))
     for name in ("index", "observations", "configs", "actions", "executed", "failure"):
         np.testing.assert_array_equal(getattr(pooled, name), getattr(here, name))
+
+
+class _FullSpeed(RandomPolicy):
+    def act(self, observations, actions, step, lengths):
+        return np.tile(np.array([1.0, -0.5], np.float32), (len(observations), 1))
+
+
+@pytest.mark.slow
+def test_a_stationary_robots_episodes_record_the_governed_push():
+    from masspush.settings import get_setting
+    from masspush.sim.pushers import reach_governor
+
+    setting = get_setting("real-ur10")
+    config = setting.env_config()
+    governor = reach_governor(config.pusher, config.physics)
+    out = run_env(config, _FullSpeed(), np.arange(8), TRAIN, 3)
+    done = ~np.isnan(out.actions[..., 0])
+    assert done.any()
+    for e, t in zip(*np.nonzero(done), strict=True):
+        expected = governor([1.0, -0.5], out.observations[e, t], out.lengths[e])
+        np.testing.assert_array_equal(out.actions[e, t], expected)
+    assert (out.actions[done][:, 0] < 1.0).any()  # some pushes were slowed

@@ -87,13 +87,26 @@ def test_a_policy_environment_for_a_stationary_robot_pays_for_a_lost_chain(predi
     config = EnvConfig(physics=get_setting("real-ur10").physics(), pusher="ur10-stationary")
     env = PushPolicyEnv(config, str(predictor_file), loss_reward=loss)
     assert env.observation_space.shape == (history_dim(2, 2, env.workspace),)
-    env.reset(seed=0, options=None)
+    env.governor = None  # the robot without its speed governor
+    env.reset(seed=0, options=EDGE_CHAIN)
     # Full speed away from the base on a light chain near the workspace's edge.
-    env.chain_env.reset(options={"masses": [0.02, 0.02], "root_pose": [0.0, 0.2, 0.0],
-                                 "joint_angles": [0.0], "lengths": [0.12, 0.12],
-                                 "friction": 0.5})  # fmt: skip
     _, reward, done, _, info = env.step(np.array([1.0, -0.5], np.float32))
     assert done and info["failure"] == "left_workspace" and reward == loss
+
+
+EDGE_CHAIN = {"masses": [0.02, 0.02], "root_pose": [0.0, 0.2, 0.0], "joint_angles": [0.0],
+              "lengths": [0.12, 0.12], "friction": 0.5}  # fmt: skip
+
+
+@pytest.mark.slow
+def test_a_stationary_robots_policy_learns_with_its_speed_governor(predictor_file):
+    config = EnvConfig(physics=get_setting("real-ur10").physics(), pusher="ur10-stationary")
+    env = PushPolicyEnv(config, str(predictor_file))
+    env.reset(seed=0, options=EDGE_CHAIN)
+    _, _, _, _, info = env.step(np.array([1.0, -0.5], np.float32))
+    # The same push as above, slowed: the chain stays, and the history holds the push made.
+    assert info["failure"] is None and 0.0 < env._actions[0, 0, 0] < 0.2
+    assert env._actions[0, 0, 1] == np.float32(-0.5)
 
 
 @pytest.mark.slow

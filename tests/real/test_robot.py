@@ -170,3 +170,57 @@ def test_runs_of_a_policy_trained_on_runs_keep_its_memory_as_in_training(predict
     assert policy.resets == len(range(0, started, runs))
     if episode.failure is None:
         assert policy.resets == {1: 4, 2: 2, 4: 1, 8: 1}[runs]
+
+
+class _SpeedyRobot(SimRobot):
+    """A simulated robot that remembers the actions it was told to make."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.told: list[np.ndarray] = []
+
+    def push(self, action):
+        self.told.append(np.asarray(action).copy())
+        return super().push(action)
+
+
+class _FullSpeedAway(RandomPolicy):
+    """Pushes the first link at full speed away from the stationary robot (its base faces +y;
+    a push's direction is the side times the link's +y axis, `push_geometry`)."""
+
+    def act(self, observations, actions, step, lengths):
+        side = np.where(np.cos(observations[:, step, 2]) >= 0, 1.0, -1.0)
+        return np.stack([side, np.full_like(side, -0.5)], 1).astype(np.float32)
+
+
+def test_a_stationary_robots_governor_slows_the_push_it_is_told_and_records_it(predictor):
+    robot = _SpeedyRobot("real-ur10", seed=44, pushes=6)
+    assert robot.governor is not None and SimRobot(SETTING).governor is None
+    episode = run_estimation(robot, predictor_for("real-ur10"), _FullSpeedAway(), 6, seed=1)
+    assert min(abs(a[0]) for a in robot.told) < 0.5  # the chain neared the edge: slowed
+    for k, told in enumerate(robot.told):
+        seen = episode.start.config if k == 0 else episode.reports[k - 1].config
+        asked = _FullSpeedAway().act(seen[None, None], None, 0, None)[0]
+        np.testing.assert_array_equal(told, robot.governor(asked, seen, episode.start.lengths))
+        np.testing.assert_array_equal(episode.actions[k], told)  # what the history holds
+
+
+@pytest.mark.slow
+def test_the_governor_keeps_chains_in_reach_that_full_speed_pushes_lose():
+    """Full-speed pushes away from the robot, 6 in a row, on 12 chains: without the governor
+    a third of the chains or more leave the workspace (5 of 12); with it none may."""
+    lost = {}
+    for governed in (True, False):
+        robot = SimRobot("real-ur10", seed=40, pushes=6)
+        if not governed:
+            robot.governor = None
+        episodes = [
+            run_estimation(robot, predictor_for("real-ur10"), _FullSpeedAway(), 6, seed=i)
+            for i in range(12)
+        ]
+        lost[governed] = sum(e.failure == "left_workspace" for e in episodes)
+    assert lost[True] == 0 and lost[False] >= 4, lost
+
+
+def predictor_for(setting: str):
+    return load_model(resolve_model("rp", setting), setting)[0]

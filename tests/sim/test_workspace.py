@@ -3,8 +3,9 @@ import math
 import numpy as np
 import pytest
 
+from masspush.config import PhysicsConfig
 from masspush.sim.chain import link_poses
-from masspush.sim.workspace import ROBOT_FRAME_DIM, Workspace
+from masspush.sim.workspace import ROBOT_FRAME_DIM, ReachGovernor, Workspace
 
 # A base at (0, -0.7) facing +y, as the stationary UR10's.
 WS = Workspace(base=(0.0, -0.7, math.pi / 2), r_min=0.4, r_max=1.0, max_bearing=1.2)
@@ -58,3 +59,49 @@ def test_bad_bounds_are_refused(kwargs):
     args = {"base": (0.0, 0.0, 0.0), "r_min": 0.4, "r_max": 1.0, "max_bearing": 1.0, **kwargs}
     with pytest.raises(ValueError):
         Workspace(**args)
+
+
+# --- the speed governor -----------------------------------------------------------------
+GOVERNOR = ReachGovernor(WS, PhysicsConfig())
+CHAIN_LENGTHS = (0.125, 0.125)
+
+
+def chain_at(y: float) -> np.ndarray:
+    """A straight chain along +x, its first link centred at (0, y): 0.7 + y m from the base."""
+    return np.array([0.0, y, 0.0, 0.0])
+
+
+def test_a_push_in_the_middle_of_the_workspace_is_left_as_it_is():
+    action = np.array([1.0, -0.3], np.float32)  # full speed, away from the base
+    np.testing.assert_array_equal(GOVERNOR(action, chain_at(0.0), CHAIN_LENGTHS), action)
+
+
+def test_a_push_out_of_reach_is_slowed_to_the_fastest_safe_one():
+    config = chain_at(0.15)  # 0.15 m from the far edge, pushed towards it
+    governed = GOVERNOR(np.array([1.0, -0.3], np.float32), config, CHAIN_LENGTHS)
+    assert 0.0 < governed[0] < 0.5 and governed[1] == np.float32(-0.3)  # same link and point
+    assert GOVERNOR.safe(governed, config, CHAIN_LENGTHS)
+    assert not GOVERNOR.safe(governed + np.array([0.01, 0.0]), config, CHAIN_LENGTHS)
+    np.testing.assert_array_equal(GOVERNOR(governed, config, CHAIN_LENGTHS), governed)
+    # From the other side the same push points back into the workspace: left alone.
+    back = np.array([-1.0, -0.3], np.float32)
+    np.testing.assert_array_equal(GOVERNOR(back, config, CHAIN_LENGTHS), back)
+
+
+def test_the_side_of_the_push_is_kept_when_it_is_slowed_to_nearly_nothing():
+    # 2 cm from the near edge, pushed towards the base: about 0.18 m/s is left.
+    governed = GOVERNOR(np.array([-0.8, 0.5]), chain_at(-0.28), CHAIN_LENGTHS)
+    assert -0.05 < governed[0] <= 0.0 and math.copysign(1.0, governed[0]) == -1.0
+
+
+def test_the_slide_grows_with_speed_up_to_the_arms_top_slide():
+    config = chain_at(0.1)  # 0.19 m of room for the second link's centre, pushed outwards
+    assert GOVERNOR.safe(np.array([0.2, 0.0]), config, CHAIN_LENGTHS)
+    assert not GOVERNOR.safe(np.array([0.5, 0.0]), config, CHAIN_LENGTHS)
+    roomy = ReachGovernor(Workspace(WS.base, 0.4, 1.0, 1.2, slide_max=0.1), PhysicsConfig())
+    assert roomy.safe(np.array([1.0, 0.0]), config, CHAIN_LENGTHS)  # no push slides further
+
+
+def test_slide_bounds_are_validated():
+    with pytest.raises(ValueError, match="slide"):
+        Workspace(base=(0.0, 0.0, 0.0), r_min=0.4, r_max=1.0, max_bearing=1.0, slide_max=-0.1)

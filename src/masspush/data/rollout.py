@@ -25,7 +25,7 @@ import numpy as np
 from masspush.cluster.pool import Workers, gather, is_pool, split
 from masspush.config import EnvConfig
 from masspush.sim.chain import sample_chain
-from masspush.sim.pushers import pusher_kind
+from masspush.sim.pushers import pusher_kind, reach_governor
 from masspush.sim.simulate import FAILURES
 
 TRAIN, EVAL = 0, 1
@@ -229,6 +229,7 @@ def run_env(
     physics = env_config.physics
     k, n = env_config.pushes, physics.n_links
     env = ChainEnv.from_config(env_config)
+    governor = reach_governor(env_config.pusher, physics)
     out = empty_episodes(len(indices), k, n)
     d = physics.obs_dim
     for e, i in enumerate(indices):
@@ -249,6 +250,8 @@ def run_env(
             action = policy.act(
                 out.observations[e : e + 1], out.actions[e : e + 1], t, out.lengths[e : e + 1]
             )[0]
+            if governor is not None:  # a stationary robot's pushes, as it makes them
+                action = governor(action, out.observations[e, t], out.lengths[e])
             obs, _, terminated, _, info = env.step(np.asarray(action, np.float32))
             out.actions[e, t], out.executed[e, t] = action, info["push"]["action"]
             out.failure[e, t] = failure_code(info["failure"])

@@ -37,7 +37,7 @@ from masspush.learn.features import (
     push_reward,
 )
 from masspush.learn.vec_env import BatchPushVecEnv
-from masspush.sim.pushers import pusher_kind
+from masspush.sim.pushers import pusher_kind, reach_governor
 
 ChainEnvFactory = Callable[[], gym.Env]
 """Makes the environment whose chains the policy pushes, inside each worker: one that speaks
@@ -106,6 +106,7 @@ class PushPolicyEnv(gym.Env):
         self.predictor, _ = load_model(predictor_path)
         self.k, self.n, self.d = env_config.pushes, physics.n_links, physics.obs_dim
         self.workspace = pusher_kind(env_config.pusher).workspace
+        self.governor = reach_governor(env_config.pusher, physics)
         dim = history_dim(self.n, self.k, self.workspace)
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, (dim,), np.float32)
         self.action_space = self.chain_env.action_space
@@ -115,8 +116,11 @@ class PushPolicyEnv(gym.Env):
     ) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
         # A chain that is already unstable before any push is redrawn: nothing to learn there.
-        obs, info = self.chain_env.reset(seed=int(self.np_random.integers(2**63)))
+        # `options` pin the chain (ChainEnv's options), for tests and demonstrations.
+        obs, info = self.chain_env.reset(seed=int(self.np_random.integers(2**63)), options=options)
         while info["failure"] is not None:
+            if options:
+                raise ValueError(f"the chain of options {options} fails at rest: {info['failure']}")
             obs, info = self.chain_env.reset(seed=int(self.np_random.integers(2**63)))
         self._obs = np.full((1, self.k + 1, self.d), np.nan, np.float32)
         self._actions = np.full((1, self.k, 2), np.nan, np.float32)
@@ -128,6 +132,8 @@ class PushPolicyEnv(gym.Env):
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         action = np.clip(np.asarray(action, np.float32), -1.0, 1.0)
+        if self.governor is not None:  # part of the stationary robot, as in deployment
+            action = self.governor(action, self._obs[0, self._t], self._lengths[0])
         obs, _, terminated, _, info = self.chain_env.step(action)
         self._actions[0, self._t] = action
         if info["failure"] is not None:

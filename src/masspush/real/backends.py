@@ -10,7 +10,7 @@ import numpy as np
 
 from masspush.real.robot import PushReport, RestPose, Robot
 from masspush.real.target_world import TargetWorldRobot
-from masspush.sim.pushers import PUSHERS
+from masspush.sim.pushers import PUSHERS, reach_governor
 
 
 class SimRobot:
@@ -38,6 +38,8 @@ class SimRobot:
         if pushes is not None:
             config = replace(config, pushes=pushes)
         self.env = ChainEnv.from_config(config, allow_out_of_range)
+        self.governor = reach_governor(self.pusher, config.physics)
+        """The stationary robot's speed governor (`run_estimation` applies it), or None."""
         self.n_links = self.setting.n_links
         self.seed = seed
         self.options = None if masses is None else {"masses": list(masses)}

@@ -100,6 +100,11 @@ class Robot(Protocol):
     def close(self) -> None:
         """Release the hardware."""
 
+    # Optional: `governor`, a callable (action, observed config, lengths) -> action that
+    # slows pushes which could carry the chain out of a stationary robot's reach
+    # (`masspush.sim.ReachGovernor`; `reach_governor(pusher, physics)` makes the simulated
+    # UR10's). `run_estimation` passes every action through it before `push`.
+
 
 @dataclass
 class EstimationEpisode:
@@ -170,8 +175,11 @@ def run_estimation(
     lengths = rest.lengths[None].astype(np.float32)
     if fresh:
         policy.reset(np.array([seed], np.uint64))
+    governor = getattr(robot, "governor", None)
     for k in range(pushes):
         action = np.asarray(policy.act(observed, chosen, k, lengths)[0], np.float32)
+        if governor is not None:  # the push the robot is told to make, as in training
+            action = governor(action, observed[0, k], lengths[0])
         result = robot.push(action)
         episode.actions.append(action)
         episode.reports.append(result)

@@ -41,7 +41,7 @@ import numpy as np
 from masspush.config import EnvConfig, PhysicsConfig, Range
 from masspush.real.robot import PushReport, RestPose
 from masspush.sim.chain import sample_chain, wrap_angle
-from masspush.sim.pushers import make_pusher
+from masspush.sim.pushers import make_pusher, reach_governor
 from masspush.sim.simulate import ChainSim
 
 SOLVERS = {"CG": mujoco.mjtSolver.mjSOL_CG, "Newton": mujoco.mjtSolver.mjSOL_NEWTON,
@@ -332,6 +332,9 @@ class TargetWorldRobot:
         self.world = TargetWorld() if world is None or self.ranges else world
         self.physics = self.world.physics(self.setting.physics())
         self.pusher_name = pusher or self.setting.pusher
+        # The robot's software knows the setting's chain, not the lab's true one.
+        self.governor = reach_governor(self.pusher_name, self.setting.physics())
+        """The stationary robot's speed governor (`run_estimation` applies it), or None."""
         self.n_links = self.setting.n_links
         self.seed = seed
         self.pinned = {} if masses is None else {"masses": list(masses)}

@@ -13,9 +13,9 @@ EXPORTS = {
     "simulate": ("FAILURES", "REACH_FAILURES", "ChainSim", "PushOutcome"),
     "batch": ("ChainBatch",),
     "pushers": ("PUSHERS", "PUSHER_KINDS", "ArmPusher", "StiffPusher", "make_pusher",
-                "pusher_kind"),
+                "pusher_kind", "reach_governor"),
     "convergence": ("format_table", "validate_physics"),
-    "workspace": ("Workspace",),
+    "workspace": ("ReachGovernor", "Workspace"),
 }  # fmt: skip
 __getattr__ = lazy(__name__, EXPORTS)
 __all__ = names(EXPORTS)

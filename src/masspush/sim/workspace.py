@@ -8,6 +8,11 @@ link centre at a horizontal distance in [r_min, r_max] from it and within +-max_
 the direction the base faces. Its bounds come from a reachability scan of the arm model
 (experiments/arms/stationary_reach.py, docs/real-robot.md): from anywhere inside, every push
 the action space allows can be placed by the arm.
+
+The robot also keeps the chain in reach (`ReachGovernor`): before a push it lowers the
+push's speed until the longest slide that speed gave in training would leave every link
+centre inside, as a robot's safety controller limits speed near a boundary. The policy and
+the predictor see the governed action: it is the push the robot was told to make.
 """
 
 from __future__ import annotations
@@ -18,6 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from masspush.config import PhysicsConfig
+from masspush.sim.actions import action_to_push, check_action, push_geometry
 from masspush.sim.chain import link_poses, wrap_angle
 
 
@@ -33,12 +40,24 @@ class Workspace:
     """Farthest a link centre may lie from the base's axis, m."""
     max_bearing: float
     """Largest angle between the facing direction and the bearing of a link centre, rad."""
+    slide_per_speed: float = 0.11
+    """A link centre's longest slide along the push per m/s of commanded speed, s [ours:
+    the 99th percentile over 7,000 random pushes of the stationary UR10 in real-ur10's
+    training world, docs/notebook/2026-12-02-reach-governor.md]."""
+    slide_max: float = 0.20
+    """The longest slide at any speed, m: the arm's joint speed limits cap what a fast
+    action delivers [ours, same measurement]."""
+    slide_sideways: float = 0.45
+    """The longest sideways slide, as a fraction of the slide along the push [ours, same
+    measurement]."""
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.r_min < self.r_max:
             raise ValueError(f"need 0 <= r_min < r_max, got {self.r_min}, {self.r_max}")
         if not 0.0 < self.max_bearing <= math.pi:
             raise ValueError(f"max_bearing must be in (0, pi], got {self.max_bearing}")
+        if min(self.slide_per_speed, self.slide_max, self.slide_sideways) < 0.0:
+            raise ValueError("the slide bounds must be >= 0")
 
     def polar(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(distance from the base's axis, bearing from its facing direction) of (..., 2)
@@ -63,6 +82,57 @@ class Workspace:
         yaw = config[..., 2] - self.base[2]
         out = np.stack([c * dx + s * dy, -s * dx + c * dy, np.cos(yaw), np.sin(yaw)], -1)
         return out.astype(np.float32)
+
+
+GOVERNOR_BISECTIONS = 12
+"""Halvings of the speed range when the governor searches the fastest safe push (a
+resolution of 2.5e-4 of the action range) [ours]."""
+
+
+@dataclass(frozen=True)
+class ReachGovernor:
+    """A stationary robot's speed governor: an action whose push could carry the chain out
+    of reach is slowed (|a1| lowered; side, link and point kept) to the fastest that cannot.
+
+    'Could' is the measured bound of the workspace (`slide_per_speed`, `slide_max`,
+    `slide_sideways`): every link centre may slide up to that far along the push and a
+    fraction of it sideways; the governor asks that all of that region lie inside. It
+    judges from the pose the robot observed, so it is the same in training, in evaluation
+    and on a real robot."""
+
+    workspace: Workspace
+    physics: PhysicsConfig
+
+    def __call__(self, action, config: np.ndarray, lengths: Sequence[float]) -> np.ndarray:
+        """The governed action (float32), `action` itself where its push is safe."""
+        a = check_action(action)
+        config, lengths = np.asarray(config, float), [float(v) for v in lengths]
+        if self.safe(a, config, lengths):
+            return a.astype(np.float32)
+        lo, hi = 0.0, abs(a[0])
+        for _ in range(GOVERNOR_BISECTIONS):
+            mid = (lo + hi) / 2
+            if self.safe(np.array([math.copysign(mid, a[0]), a[1]]), config, lengths):
+                lo = mid
+            else:
+                hi = mid
+        return np.array([math.copysign(lo, a[0]), a[1]], np.float32)
+
+    def safe(self, action: np.ndarray, config: np.ndarray, lengths: Sequence[float]) -> bool:
+        """Whether every link centre stays in the workspace over the push's longest slide."""
+        ws, physics = self.workspace, self.physics
+        push = action_to_push(action, lengths, physics)
+        direction = push_geometry(push, config, lengths, physics).direction
+        along = min(ws.slide_max, ws.slide_per_speed * push.speed)
+        side = ws.slide_sideways * along * np.array([-direction[1], direction[0]])
+        centres, _ = link_poses(config, lengths, physics.joint_gap)
+        # The region each centre may reach, sampled: the sector's inner arc is not convex.
+        s = np.linspace(0.0, 1.0, 5)[:, None, None]
+        u = np.linspace(-1.0, 1.0, 3)[None, :, None]
+        points = centres[:, None, None, :] + s * along * direction + u * side
+        r, bearing = ws.polar(points.reshape(-1, 2))
+        inside = (r >= ws.r_min) & (r <= ws.r_max) & (np.abs(bearing) <= ws.max_bearing)
+        return bool(inside.all())
 
 
 ROBOT_FRAME_DIM = 4

@@ -10,6 +10,7 @@ from masspush.config import PhysicsConfig
 from masspush.sim.pushers.arm import ARMS, ArmPusher
 from masspush.sim.pushers.base import Pusher, PusherKind, StepHook
 from masspush.sim.pushers.stiff import StiffPusher, park
+from masspush.sim.workspace import ReachGovernor
 
 PUSHER_KINDS: dict[str, PusherKind] = {
     kind.name: kind
@@ -62,6 +63,13 @@ def tool_radius(name: str, physics: PhysicsConfig) -> float:
     return pusher.tool_radius if isinstance(pusher, ArmPusher) else physics.pusher_radius
 
 
+def reach_governor(name: str, physics: PhysicsConfig) -> ReachGovernor | None:
+    """The speed governor of a stationary pusher (`ReachGovernor`), None for one whose base
+    follows the chain: every caller that chooses pushes for it passes its actions through."""
+    workspace = pusher_kind(name).workspace
+    return None if workspace is None else ReachGovernor(workspace, physics)
+
+
 def make_pusher(name: str) -> Pusher:
     """A new pusher called `name`, or a ValueError listing the known ones."""
     return pusher_kind(name).make()
@@ -79,5 +87,6 @@ __all__ = [
     "make_pusher",
     "park",
     "pusher_kind",
+    "reach_governor",
     "tool_radius",
 ]
