@@ -73,6 +73,11 @@ def test_too_few_episodes_for_the_folds_are_refused():
         Sim2RealConfig(episodes_per_class=3)
 
 
+def test_a_missing_recording_for_the_governor_is_refused_before_any_work(tmp_path):
+    with pytest.raises(ValueError, match="governor_fit: no such recording"):
+        Sim2RealConfig(governor_fit=str(tmp_path / "none.jsonl"))
+
+
 @pytest.mark.slow
 def test_the_control_runs_in_the_training_world(tmp_path):
     from dataclasses import replace

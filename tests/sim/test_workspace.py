@@ -5,7 +5,13 @@ import pytest
 
 from masspush.config import PhysicsConfig
 from masspush.sim.chain import link_poses
-from masspush.sim.workspace import ROBOT_FRAME_DIM, ReachGovernor, Workspace
+from masspush.sim.workspace import (
+    ROBOT_FRAME_DIM,
+    ReachGovernor,
+    Workspace,
+    fit_slides,
+    push_slides,
+)
 
 # A base at (0, -0.7) facing +y, as the stationary UR10's.
 WS = Workspace(base=(0.0, -0.7, math.pi / 2), r_min=0.4, r_max=1.0, max_bearing=1.2)
@@ -105,3 +111,28 @@ def test_the_slide_grows_with_speed_up_to_the_arms_top_slide():
 def test_slide_bounds_are_validated():
     with pytest.raises(ValueError, match="slide"):
         Workspace(base=(0.0, 0.0, 0.0), r_min=0.4, r_max=1.0, max_bearing=1.0, slide_max=-0.1)
+
+
+def test_push_slides_measures_along_and_across_the_push():
+    physics = PhysicsConfig()
+    before = chain_at(0.0)
+    after = before + np.array([0.02, 0.10, 0.0, 0.0])  # 10 cm along +y, 2 cm across
+    # a1 > 0 on a chain along +x pushes towards +y (`push_geometry`): 0.4 x 5 m/s.
+    speed, along, across = push_slides(
+        before[None], after[None], np.array([[0.4, 0.0]]), np.array([CHAIN_LENGTHS]), physics
+    )
+    np.testing.assert_allclose([speed[0], along[0], across[0]], [2.0, 0.10, 0.02], atol=1e-9)
+
+
+def test_fit_slides_reads_the_quantiles_of_the_pushes():
+    rng = np.random.default_rng(0)
+    speed = rng.uniform(0.0, 5.0, 4000)
+    along = np.minimum(0.1 * speed, 0.25) * rng.uniform(0.0, 1.0, 4000)
+    bounds = fit_slides(speed, along, 0.5 * along)
+    assert bounds["slide_per_speed"] == pytest.approx(0.1, abs=0.005)
+    assert bounds["slide_max"] == pytest.approx(0.25, abs=0.01)
+    assert bounds["slide_sideways"] == pytest.approx(0.5, abs=0.01)
+    with pytest.raises(ValueError, match="too few pushes"):
+        fit_slides(speed[:10], along[:10], along[:10])
+    with pytest.raises(ValueError, match="quantile"):
+        fit_slides(speed, along, along, quantile=1.0)

@@ -63,6 +63,10 @@ class Sim2RealConfig:
     """None: every episode draws the target world's constants afresh (a lab of its own per
     episode, the stress test); a seed: one lab's constants for all episodes and each class's
     object its own (`target_world.Lab`), as in a real lab; only with world "target"."""
+    governor_fit: str | None = None
+    """A recording of random pushes made in this world (e.g. an earlier run's random.jsonl):
+    the stationary robot's speed governor takes its slide bounds from them
+    (`masspush.real.governor.fit_governor`) instead of the training world's."""
     segments: int = 1
     """Each episode runs the policy this many times in a row on the same chain, each run the
     setting's pushes (`masspush.real.robot.run_segments`); the classifier reads the runs as
@@ -83,6 +87,8 @@ class Sim2RealConfig:
             raise ValueError("severity scales the target world; it needs world 'target'")
         if self.segments < 1:
             raise ValueError(f"segments must be >= 1, got {self.segments}")
+        if self.governor_fit is not None and not Path(self.governor_fit).is_file():
+            raise ValueError(f"governor_fit: no such recording {self.governor_fit}")
         if self.world != "target" and self.lab is not None:
             raise ValueError("a lab is one draw of the target world; it needs world 'target'")
         if self.episodes_per_class < self.classifier.folds:
@@ -188,6 +194,10 @@ def _record_class(shared: tuple, c: int, advance=None) -> tuple[list, dict, dict
             allow_out_of_range=True,
         )
     )
+    if config.governor_fit is not None and robot.governor is not None:
+        from masspush.real.governor import fit_governor
+
+        robot.governor = fit_governor(robot.governor, config.governor_fit)
     episodes, failures = [], {}
     tally = {k: 0 for k in ("attempted", "kept", "lost", "failed")}
     tally["good_pushes"] = 0
@@ -232,6 +242,8 @@ def record_arm(
             robot_name += f" (differences x{config.severity:g})"
         if config.lab is not None:
             robot_name += f", lab {config.lab}"
+        if config.governor_fit is not None:
+            robot_name += f", speed governor fitted to {config.governor_fit}"
         if config.segments != 1:
             robot_name += f", {config.segments} runs of the policy per episode"
         robot_name += "" if model == ARMS[arm] else f", {model}"

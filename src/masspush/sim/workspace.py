@@ -135,5 +135,58 @@ class ReachGovernor:
         return bool(inside.all())
 
 
+SATURATION_SPEED = 2.0
+"""Pushes at or below this commanded speed, m/s, set `slide_per_speed` in `fit_slides`:
+above it the UR10's joint speed limits cap the speed delivered [ours, the governor's
+notebook]."""
+
+
+def push_slides(
+    before: np.ndarray, after: np.ndarray, actions: np.ndarray, lengths: np.ndarray,
+    physics: PhysicsConfig,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+    """Per push, (commanded speed m/s, longest slide of a link centre along the push m,
+    longest across it m), from the rest poses before and after each push, its action and
+    the chain's link lengths (rows: pushes). What `fit_slides` reads."""
+    speed, along, across = (np.zeros(len(actions)) for _ in range(3))
+    for i, (q0, q1, a, lens) in enumerate(zip(before, after, actions, lengths, strict=True)):
+        q0, q1, lens = np.asarray(q0, float), np.asarray(q1, float), list(map(float, lens))
+        push = action_to_push(np.clip(np.asarray(a, float), -1.0, 1.0), lens, physics)
+        d = push_geometry(push, q0, lens, physics).direction
+        moved = (
+            link_poses(q1, lens, physics.joint_gap)[0] - link_poses(q0, lens, physics.joint_gap)[0]
+        )
+        speed[i] = push.speed
+        along[i] = float((moved @ d).max())
+        across[i] = float(np.abs(moved @ np.array([-d[1], d[0]])).max())
+    return speed, along, across
+
+
+def fit_slides(
+    speed: np.ndarray, along: np.ndarray, across: np.ndarray, quantile: float = 0.99
+) -> dict[str, float]:
+    """The governor's slide bounds (`Workspace.slide_*`) from measured pushes
+    (`push_slides`): `slide_max` the `quantile` of the slides along the push,
+    `slide_per_speed` the `quantile` of slide per m/s among pushes up to
+    `SATURATION_SPEED`, `slide_sideways` the ratio of the two directions' quantiles. Pushes
+    after which the chain was lost have no rest pose and are missing: the bounds are low by
+    what they would add."""
+    speed, along, across = (np.asarray(v, float) for v in (speed, along, across))
+    if not 0.5 <= quantile < 1.0:
+        raise ValueError(f"quantile must be in [0.5, 1), got {quantile}")
+    slow = (speed > 0.1) & (speed <= SATURATION_SPEED)
+    if slow.sum() < 20 or len(speed) < 50:
+        raise ValueError(
+            f"too few pushes to fit slide bounds: {len(speed)} ({slow.sum()} of 0.1-"
+            f"{SATURATION_SPEED} m/s); need 50 (20)"
+        )
+    top = float(np.quantile(along, quantile))
+    return {
+        "slide_per_speed": float(np.quantile(along[slow] / speed[slow], quantile)),
+        "slide_max": top,
+        "slide_sideways": float(np.quantile(across, quantile)) / max(top, 1e-9),
+    }
+
+
 ROBOT_FRAME_DIM = 4
 """Length of `Workspace.robot_frame`'s vector."""

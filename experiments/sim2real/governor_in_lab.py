@@ -1,0 +1,61 @@
+"""The speed governor with the training world's slide bounds against bounds fitted in a lab:
+chains lost over runs of the policy in a target-world lab.
+
+    python experiments/sim2real/governor_in_lab.py --lab 5 --fit RECORDING [--runs 8] [--chains 40]
+
+RECORDING: random pushes in that lab (e.g. `results/sim2real-governed-lab-16push/5/random.jsonl`
+from `masspush sim2real --lab 5 --segments 8`), fitted by `experiments/sim2real/slide_bounds.py`'s
+`fit_slides`. The same chains (the robot's seed) for every policy and governor.
+"""
+
+import argparse
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import torch
+from slide_bounds import pushes_of  # experiments/sim2real, beside this file
+
+from masspush.models import model_and_policy
+from masspush.real import run_segments
+from masspush.real.target_world import TargetWorldRobot
+from masspush.settings import get_setting
+from masspush.sim import REACH_FAILURES
+from masspush.sim.workspace import ReachGovernor, fit_slides, push_slides
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--setting", default="real-ur10")
+    parser.add_argument("--lab", type=int, default=5)
+    parser.add_argument("--fit", type=Path, required=True)
+    parser.add_argument("--runs", type=int, default=8)
+    parser.add_argument("--chains", type=int, default=40)
+    parser.add_argument("--seed", type=int, default=777)
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    setting = get_setting(args.setting)
+    physics = setting.physics()
+    bounds = fit_slides(*push_slides(*pushes_of(args.fit), physics))
+    print("fitted bounds:", {k: round(v, 3) for k, v in bounds.items()})
+    pushes = setting.env_config().pushes
+    for name in ("training", "fitted"):
+        for model in ("tp+", "rp"):
+            predictor, _, policy = model_and_policy(model, setting.name)
+            robot = TargetWorldRobot(setting, seed=args.seed, lab=args.lab)
+            if name == "fitted":
+                ws = dataclasses.replace(robot.governor.workspace, **bounds)
+                robot.governor = ReachGovernor(ws, robot.governor.physics)
+            lost, speeds = [], []
+            for _ in range(args.chains):
+                episode = run_segments(robot, predictor, policy, pushes, args.runs, seed=robot.seed)
+                speeds += [abs(float(a[0])) for a in episode.actions]
+                if episode.failure in REACH_FAILURES:
+                    lost.append(len(episode.reports))
+            print(f"{name:8s} governor, {model:3s}: lost {len(lost)} of {args.chains} over "
+                  f"{args.runs} runs (at pushes {sorted(lost)}); mean |a1| {np.mean(speeds):.2f}",
+                  flush=True)  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
