@@ -4,24 +4,22 @@ chains lost over runs of the policy in a target-world lab.
     python experiments/sim2real/governor_in_lab.py --lab 5 --fit RECORDING [--runs 8] [--chains 40]
 
 RECORDING: random pushes in that lab (e.g. `results/sim2real-governed-lab-16push/5/random.jsonl`
-from `masspush sim2real --lab 5 --segments 8`), fitted by `experiments/sim2real/slide_bounds.py`'s
-`fit_slides`. The same chains (the robot's seed) for every policy and governor.
+from `masspush sim2real --lab 5 --segments 8`), fitted by `masspush.real.governor.fit_governor`.
+The same chains (the robot's seed) for every policy and governor.
 """
 
 import argparse
-import dataclasses
 from pathlib import Path
 
 import numpy as np
 import torch
-from slide_bounds import pushes_of  # experiments/sim2real, beside this file
 
 from masspush.models import model_and_policy
 from masspush.real import run_segments
+from masspush.real.governor import fit_governor
 from masspush.real.target_world import TargetWorldRobot
 from masspush.settings import get_setting
 from masspush.sim import REACH_FAILURES
-from masspush.sim.workspace import ReachGovernor, fit_slides, push_slides
 
 
 def main() -> None:
@@ -35,17 +33,13 @@ def main() -> None:
     args = parser.parse_args()
     torch.set_num_threads(1)
     setting = get_setting(args.setting)
-    physics = setting.physics()
-    bounds = fit_slides(*push_slides(*pushes_of(args.fit), physics))
-    print("fitted bounds:", {k: round(v, 3) for k, v in bounds.items()})
     pushes = setting.env_config().pushes
     for name in ("training", "fitted"):
         for model in ("tp+", "rp"):
             predictor, _, policy = model_and_policy(model, setting.name)
             robot = TargetWorldRobot(setting, seed=args.seed, lab=args.lab)
             if name == "fitted":
-                ws = dataclasses.replace(robot.governor.workspace, **bounds)
-                robot.governor = ReachGovernor(ws, robot.governor.physics)
+                robot.governor = fit_governor(robot.governor, args.fit)
             lost, speeds = [], []
             for _ in range(args.chains):
                 episode = run_segments(robot, predictor, policy, pushes, args.runs, seed=robot.seed)

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from masspush.data.recording import read_recording
+from masspush.real.governor import recording_pushes
 from masspush.settings import get_setting
 from masspush.sim.workspace import fit_slides, push_slides
 
@@ -35,11 +35,7 @@ def pushes_of(source: Path):
                             ):
                                 row.append(v)
     else:
-        for e in read_recording(source).episodes:
-            obs, acts = np.asarray(e["observations"]), np.asarray(e["actions"])
-            for t in range(len(obs) - 1):
-                for row, v in zip(rows, (obs[t], obs[t + 1], acts[t], e["lengths"]), strict=True):
-                    row.append(v)
+        return recording_pushes(source)
     return (np.array(r, float) for r in rows)
 
 
