@@ -42,14 +42,14 @@ class Workspace:
     """Largest angle between the facing direction and the bearing of a link centre, rad."""
     slide_per_speed: float = 0.11
     """A link centre's longest slide along the push per m/s of commanded speed, s [ours:
-    the 99th percentile over 7,000 random pushes of the stationary UR10 in real-ur10's
-    training world, docs/notebook/2026-12-02-reach-governor.md]."""
+    the 99th percentile of random pushes of the stationary UR10 in real-ur10's training
+    world, 0.083 (`fit_slides`), rounded up; docs/notebook/2026-12-02-reach-governor.md]."""
     slide_max: float = 0.20
     """The longest slide at any speed, m: the arm's joint speed limits cap what a fast
-    action delivers [ours, same measurement]."""
+    action delivers [ours, same measurement: 0.164, rounded up]."""
     slide_sideways: float = 0.45
     """The longest sideways slide, as a fraction of the slide along the push [ours, same
-    measurement]."""
+    measurement: 0.44]."""
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.r_min < self.r_max:
