@@ -15,9 +15,7 @@ import numpy as np
 import torch
 
 from masspush.models import model_and_policy
-from masspush.real import run_segments
-from masspush.real.governor import fit_governor
-from masspush.real.target_world import TargetWorldRobot
+from masspush.real import TargetWorldRobot, fit_governor, run_segments
 from masspush.settings import get_setting
 from masspush.sim import REACH_FAILURES
 

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from masspush.real.governor import recording_pushes
+from masspush.real import recording_pushes
 from masspush.settings import get_setting
-from masspush.sim.workspace import fit_slides, push_slides
+from masspush.sim import fit_slides, push_slides
 
 
 def pushes_of(source: Path):

@@ -1,7 +1,8 @@
 """The real-robot path: the robot interface (`robot`) and its backends (`backends`), a session
 through a robot (`session`), the classifier fine-tuned on real episodes (`finetune`,
 `classify`), the sim-to-real test world (`target_world`, `sim2real`) and domain
-randomisation (`randomise`, `robot_env`).
+randomisation (`randomise`, `robot_env`), and a stationary robot's speed governor fitted to a
+lab's pushes (`governor`).
 
 The names below are its public API (what experiments/ may import); those of the 0.1 module
 `masspush.robot` are among them (`masspush.robot` itself still imports, as this package)."""
@@ -26,6 +27,7 @@ EXPORTS = {
                  "run_sim2real", "score_arm", "sim2real"),
     "randomise": ("RandomiseConfig", "RandomiseRun", "randomise", "run_randomised"),
     "robot_env": ("RobotEnv",),
+    "governor": ("fit_governor", "recording_pushes"),
 }  # fmt: skip
 __getattr__ = lazy(__name__, EXPORTS)
 __all__ = names(EXPORTS)

@@ -15,7 +15,7 @@ EXPORTS = {
     "pushers": ("PUSHERS", "PUSHER_KINDS", "ArmPusher", "StiffPusher", "make_pusher",
                 "pusher_kind", "reach_governor"),
     "convergence": ("format_table", "validate_physics"),
-    "workspace": ("ReachGovernor", "Workspace"),
+    "workspace": ("ReachGovernor", "Workspace", "fit_slides", "push_slides"),
 }  # fmt: skip
 __getattr__ = lazy(__name__, EXPORTS)
 __all__ = names(EXPORTS)
