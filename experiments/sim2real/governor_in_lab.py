@@ -32,12 +32,16 @@ def main() -> None:
     torch.set_num_threads(1)
     setting = get_setting(args.setting)
     pushes = setting.env_config().pushes
-    for name in ("training", "fitted"):
+    shipped = TargetWorldRobot(setting, lab=args.lab).governor
+    try:  # before any work
+        governors = {"training": shipped, "fitted": fit_governor(shipped, args.fit)}
+    except (ValueError, OSError) as err:
+        parser.error(str(err))
+    for name, governor in governors.items():
         for model in ("tp+", "rp"):
             predictor, _, policy = model_and_policy(model, setting.name)
             robot = TargetWorldRobot(setting, seed=args.seed, lab=args.lab)
-            if name == "fitted":
-                robot.governor = fit_governor(robot.governor, args.fit)
+            robot.governor = governor
             lost, speeds = [], []
             for _ in range(args.chains):
                 episode = run_segments(robot, predictor, policy, pushes, args.runs, seed=robot.seed)

@@ -10,33 +10,21 @@ give the governor: `dataclasses.replace(workspace, **bounds)` (docs/real-robot.m
 """
 
 import argparse
-import glob
 from pathlib import Path
 
 import numpy as np
 
-from masspush.real import recording_pushes
+from masspush.data import load_dataset
+from masspush.real import episode_pushes, recording_pushes
 from masspush.settings import get_setting
 from masspush.sim import fit_slides, push_slides
 
 
 def pushes_of(source: Path):
     """(before, after, actions, lengths) of every push with a rest pose after it."""
-    rows = ([], [], [], [])
     if source.is_dir():
-        for shard in sorted(glob.glob(str(source / "*.npz"))):
-            with np.load(shard) as d:
-                for e in range(len(d["actions"])):
-                    for t in range(d["actions"].shape[1]):
-                        q0, q1 = d["configs"][e, t], d["configs"][e, t + 1]
-                        if d["failure"][e, t] == 0 and not np.isnan([*q0, *q1]).any():
-                            for row, v in zip(
-                                rows, (q0, q1, d["actions"][e, t], d["lengths"][e]), strict=True
-                            ):
-                                row.append(v)
-    else:
-        return recording_pushes(source)
-    return (np.array(r, float) for r in rows)
+        return episode_pushes(load_dataset(source)[1])
+    return recording_pushes(source)
 
 
 def main() -> None:
@@ -46,7 +34,11 @@ def main() -> None:
     parser.add_argument("--quantile", type=float, default=0.99)
     args = parser.parse_args()
     physics = get_setting(args.setting).physics()
-    speed, along, across = push_slides(*pushes_of(args.source), physics)
+    try:
+        speed, along, across = push_slides(*pushes_of(args.source), physics)
+        bounds = fit_slides(speed, along, across, args.quantile)
+    except (ValueError, OSError) as err:
+        parser.error(str(err))
     print(f"{len(speed)} pushes with a rest pose after them")
     print("| speed (m/s) | pushes | along, q | along, max | across, q |\n|---|---|---|---|---|")
     for lo in np.arange(0.0, 5.0, 0.5):
@@ -55,7 +47,6 @@ def main() -> None:
             q = args.quantile
             print(f"| {lo:.1f}-{lo + 0.5:.1f} | {band.sum()} | {np.quantile(along[band], q):.3f} | "
                   f"{along[band].max():.3f} | {np.quantile(across[band], q):.3f} |")  # fmt: skip
-    bounds = fit_slides(speed, along, across, args.quantile)
     print("bounds:", {k: round(v, 3) for k, v in bounds.items()})
 
 

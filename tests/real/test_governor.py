@@ -42,3 +42,12 @@ def test_too_short_a_recording_is_refused_naming_it(tmp_path):
     path = slippery_recording(tmp_path / "short.jsonl", 0.2, pushes=10)
     with pytest.raises(ValueError, match=r"short\.jsonl: too few pushes"):
         fit_governor(shipped, path)
+
+
+def test_a_recording_of_another_chain_is_refused_naming_it(tmp_path):
+    shipped = reach_governor(SETTING.pusher, SETTING.physics())
+    episode = {"id": "0", "lengths": [0.1, 0.1, 0.1], "observations": [[0.0] * 5, [0.1] * 5],
+               "actions": [[0.5, 0.0]]}  # fmt: skip
+    path = write_recording(tmp_path / "three.jsonl", Recording(n_links=3, episodes=[episode]))
+    with pytest.raises(ValueError, match=r"three\.jsonl: a recording of 3-link chains"):
+        fit_governor(shipped, path)

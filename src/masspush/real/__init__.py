@@ -27,7 +27,7 @@ EXPORTS = {
                  "run_sim2real", "score_arm", "sim2real"),
     "randomise": ("RandomiseConfig", "RandomiseRun", "randomise", "run_randomised"),
     "robot_env": ("RobotEnv",),
-    "governor": ("fit_governor", "recording_pushes"),
+    "governor": ("episode_pushes", "fit_governor", "recording_pushes"),
 }  # fmt: skip
 __getattr__ = lazy(__name__, EXPORTS)
 __all__ = names(EXPORTS)

@@ -16,21 +16,24 @@ import numpy as np
 
 from masspush.config import PhysicsConfig
 from masspush.data.recording import read_recording
+from masspush.data.rollout import Episodes
 from masspush.sim.workspace import ReachGovernor, fit_slides, push_slides
 
 
+def episode_pushes(episodes: Episodes) -> tuple[np.ndarray, ...]:
+    """(before, after, actions, lengths) of every successful push with a rest pose after it,
+    one row per push (what `push_slides` reads): a dataset's true poses, a recording's
+    observed ones (`Recording.to_episodes`)."""
+    before, after = episodes.configs[:, :-1], episodes.configs[:, 1:]
+    done = (episodes.failure == 0) & np.isfinite(before).all(-1) & np.isfinite(after).all(-1)
+    e, _ = np.nonzero(done)
+    rows = (before[done], after[done], episodes.actions[done], episodes.lengths[e])
+    return tuple(np.asarray(r, float) for r in rows)
+
+
 def recording_pushes(path: str | os.PathLike) -> tuple[np.ndarray, ...]:
-    """(before, after, actions, lengths) of every push in a recording that has a rest pose
-    after it, one row per push (what `push_slides` reads)."""
-    rows: tuple[list, ...] = ([], [], [], [])
-    for episode in read_recording(path).episodes:
-        obs, actions = np.asarray(episode["observations"]), np.asarray(episode["actions"])
-        for t in range(len(obs) - 1):
-            for row, value in zip(
-                rows, (obs[t], obs[t + 1], actions[t], episode["lengths"]), strict=True
-            ):
-                row.append(value)
-    return tuple(np.array(r, float) for r in rows)
+    """`episode_pushes` of a recording."""
+    return episode_pushes(read_recording(path).to_episodes())
 
 
 def fit_governor(
@@ -38,10 +41,18 @@ def fit_governor(
     quantile: float = 0.99,
 ) -> ReachGovernor:  # fmt: skip
     """`governor` with its slide bounds fitted (`fit_slides`) to the pushes recorded in
-    `path`; ValueError naming the file where it holds too few pushes."""
+    `path`; ValueError naming the file where it is no recording of this chain or holds too
+    few pushes."""
     physics = physics or governor.physics
+    recording = read_recording(path)  # its errors name the file
+    if recording.n_links != physics.n_links:
+        raise ValueError(
+            f"{path}: a recording of {recording.n_links}-link chains; the governor's chain "
+            f"has {physics.n_links} links"
+        )
+    pushes = episode_pushes(recording.to_episodes())
     try:
-        bounds = fit_slides(*push_slides(*recording_pushes(path), physics), quantile=quantile)
+        bounds = fit_slides(*push_slides(*pushes, physics), quantile=quantile)
     except ValueError as err:
         raise ValueError(f"{path}: {err}") from None
     return ReachGovernor(dataclasses.replace(governor.workspace, **bounds), governor.physics)

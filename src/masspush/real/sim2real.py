@@ -151,7 +151,7 @@ def record_classes(
     failures: dict[str, int] = {}
     classes: dict[str, dict[str, int]] = {}
     world = target or scaled_world(config.severity)
-    shared = (config, predictor, policy, world)
+    shared = (config, predictor, policy, world, _fitted_governor(config, setting))
     jobs = list(range(len(PAPER_CLASSES)))
     if is_pool(workers):
         results = gather(workers.imap(_record_class, jobs, shared, desc or None), len(jobs))
@@ -167,6 +167,22 @@ def record_classes(
     return recording, failures, classes
 
 
+def _fitted_governor(config: Sim2RealConfig, setting):
+    """The speed governor fitted to `config.governor_fit` (once, before any episode), or None."""
+    if config.governor_fit is None:
+        return None
+    from masspush.real.governor import fit_governor
+    from masspush.sim.pushers import reach_governor
+
+    governor = reach_governor(setting.pusher, setting.physics())
+    if governor is None:
+        raise ValueError(
+            f"governor_fit: {setting.name}'s pusher {setting.pusher!r} follows the chain; "
+            "only a stationary robot has a speed governor"
+        )
+    return fit_governor(governor, config.governor_fit)
+
+
 def _record_class(shared: tuple, c: int, advance=None) -> tuple[list, dict, dict]:
     """Class `c`'s episodes, one robot for them all (its randomness runs on from episode to
     episode): the recorded episodes, the failed pushes by reason, the tally."""
@@ -175,7 +191,7 @@ def _record_class(shared: tuple, c: int, advance=None) -> tuple[list, dict, dict
     from masspush.real.target_world import TargetWorldRobot
     from masspush.settings import get_setting
 
-    config, predictor, policy, world = shared
+    config, predictor, policy, world, governor = shared
     label, masses = list(PAPER_CLASSES.items())[c]
     setting = get_setting(config.setting)
     pushes = setting.env_config().pushes
@@ -194,10 +210,8 @@ def _record_class(shared: tuple, c: int, advance=None) -> tuple[list, dict, dict
             allow_out_of_range=True,
         )
     )
-    if config.governor_fit is not None and robot.governor is not None:
-        from masspush.real.governor import fit_governor
-
-        robot.governor = fit_governor(robot.governor, config.governor_fit)
+    if governor is not None:
+        robot.governor = governor
     episodes, failures = [], {}
     tally = {k: 0 for k in ("attempted", "kept", "lost", "failed")}
     tally["good_pushes"] = 0
