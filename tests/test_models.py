@@ -51,25 +51,27 @@ def test_a_model_of_another_setting_runs_only_when_allowed(tmp_path):
 
 
 @pytest.mark.slow
-def test_the_real_setups_learned_policy_keeps_the_chain_within_the_robots_reach():
-    # The paper's UR10 stood still: the shipped real-ur10 policy, pushing with it (and its
-    # speed governor), must keep the chain in reach on a fixed set of chains, for its 2
-    # pushes and over 8 runs in a row (docs/notebook/2026-12-02-reach-governor.md).
+@pytest.mark.parametrize("name", ["real-ur10", "real-ur10-4push"])
+def test_the_real_setups_learned_policy_keeps_the_chain_within_the_robots_reach(name):
+    # The paper's UR10 stood still: each real setting's shipped policy, pushing with it (and
+    # its speed governor), must keep the chain in reach on a fixed set of chains, for one
+    # episode's pushes and over 8 runs in a row (docs/notebook/2026-12-02-reach-governor.md).
     from masspush.models import model_and_policy
     from masspush.real.backends import SimRobot
     from masspush.real.robot import run_segments
     from masspush.settings import get_setting
     from masspush.sim.simulate import REACH_FAILURES
 
-    setting = get_setting("real-ur10")
+    setting = get_setting(name)
     assert setting.pusher == "ur10-stationary"
-    predictor, meta, policy = model_and_policy("tp+", "real-ur10")
+    predictor, meta, policy = model_and_policy("tp+", name)
     assert meta["pusher"] == "ur10-stationary"
+    k = setting.env_config().pushes
     for runs in (1, 8):
-        robot = SimRobot(setting, seed=777, pushes=2 * runs)
+        robot = SimRobot(setting, seed=777, pushes=k * runs)
         lost = 0
         for _ in range(40):
-            episode = run_segments(robot, predictor, policy, 2, runs, seed=robot.seed)
+            episode = run_segments(robot, predictor, policy, k, runs, seed=robot.seed)
             lost += episode.failure in REACH_FAILURES
         robot.close()
         assert lost <= 2, f"{lost} of 40 chains lost over {runs} run(s)"  # at most 5 %

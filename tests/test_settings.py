@@ -51,9 +51,11 @@ def test_a_setting_may_choose_its_pushes_per_episode(tmp_path):
     assert get_setting("2link-0.1-1").env_config().pushes == 2  # the paper's K
     assert get_setting("3link-1-10").env_config().pushes == 3
     four = get_setting("real-ur10-4push")
+    real = get_setting("real-ur10")
     assert (four.env_config().pushes, four.env_config().pusher, four.mass_range) == (
-        4, "ur10", get_setting("real-ur10").mass_range
+        4, "ur10-stationary", real.mass_range
     )  # fmt: skip
+    assert four.overrides == real.overrides  # the same world, only more pushes
     assert four.env_config("stiff", obs_noise=0.0).pusher == "stiff"
     assert four.as_dict()["pushes"] == 4 and "pushes" not in get_setting("real-ur10").as_dict()
     path = tmp_path / "s.toml"

@@ -50,13 +50,19 @@ class Workspace:
     slide_sideways: float = 0.45
     """The longest sideways slide, as a fraction of the slide along the push [ours, same
     measurement: 0.44]."""
+    slide_base: float = 0.0
+    """The longest slide of the slowest push, m, which `slide_per_speed` adds to: the
+    tool's travel past the face and its hold move a chain even at low speed. 0 for the
+    training world, whose shipped models were trained with the bound through zero; a bound
+    fitted to a lab (`fit_slides`) has its own [ours: lab 5 of the target world, 0.064 m;
+    docs/notebook/2026-12-02-reach-governor.md]."""
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.r_min < self.r_max:
             raise ValueError(f"need 0 <= r_min < r_max, got {self.r_min}, {self.r_max}")
         if not 0.0 < self.max_bearing <= math.pi:
             raise ValueError(f"max_bearing must be in (0, pi], got {self.max_bearing}")
-        if min(self.slide_per_speed, self.slide_max, self.slide_sideways) < 0.0:
+        if min(self.slide_per_speed, self.slide_max, self.slide_sideways, self.slide_base) < 0:
             raise ValueError("the slide bounds must be >= 0")
 
     def polar(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -123,7 +129,7 @@ class ReachGovernor:
         ws, physics = self.workspace, self.physics
         push = action_to_push(action, lengths, physics)
         direction = push_geometry(push, config, lengths, physics).direction
-        along = min(ws.slide_max, ws.slide_per_speed * push.speed)
+        along = min(ws.slide_max, ws.slide_base + ws.slide_per_speed * push.speed)
         side = ws.slide_sideways * along * np.array([-direction[1], direction[0]])
         centres, _ = link_poses(config, lengths, physics.joint_gap)
         # The region each centre may reach, sampled: the sector's inner arc is not convex.
@@ -139,6 +145,15 @@ SATURATION_SPEED = 2.0
 """Pushes at or below this commanded speed, m/s, set `slide_per_speed` in `fit_slides`:
 above it the UR10's joint speed limits cap the speed delivered [ours, the governor's
 notebook]."""
+
+LOW_SPEED = 0.5
+"""Pushes at or below this commanded speed, m/s, set `slide_base` in `fit_slides` [ours:
+in lab 5 of the target world their slides' 99th percentile, 0.054-0.068 m, was 2-3 times
+what a bound through zero allowed them; the governor's notebook]."""
+
+SPEED_BAND = 0.25
+"""Width of the speed bands, m/s, whose slides set `slide_per_speed` in `fit_slides`
+[ours: narrow enough that taking each band at its lowest speed costs little]."""
 
 
 def push_slides(
@@ -166,23 +181,32 @@ def fit_slides(
     speed: np.ndarray, along: np.ndarray, across: np.ndarray, quantile: float = 0.99
 ) -> dict[str, float]:
     """The governor's slide bounds (`Workspace.slide_*`) from measured pushes
-    (`push_slides`): `slide_max` the `quantile` of the slides along the push,
-    `slide_per_speed` the `quantile` of slide per m/s among pushes up to
-    `SATURATION_SPEED`, `slide_sideways` the ratio of the two directions' quantiles. Pushes
-    after which the chain was lost have no rest pose and are missing: the bounds are low by
-    what they would add."""
+    (`push_slides`): `slide_max` the `quantile` of the slides along the push; `slide_base`
+    the `quantile` of the slides of pushes up to `LOW_SPEED`; `slide_per_speed` the least
+    slope above it that holds, in every 0.25 m/s band of speeds up to `SATURATION_SPEED`,
+    the band's `quantile` at the band's lowest speed; `slide_sideways` the ratio of the two
+    directions' quantiles. Pushes after which the chain was lost have no rest pose and are
+    missing: the bounds are low by what they would add."""
     speed, along, across = (np.asarray(v, float) for v in (speed, along, across))
     if not 0.5 <= quantile < 1.0:
         raise ValueError(f"quantile must be in [0.5, 1), got {quantile}")
-    slow = (speed > 0.1) & (speed <= SATURATION_SPEED)
-    if slow.sum() < 20 or len(speed) < 50:
+    low = (speed > 0.0) & (speed <= LOW_SPEED)
+    slow = (speed > LOW_SPEED) & (speed <= SATURATION_SPEED)
+    if low.sum() < 20 or slow.sum() < 20 or len(speed) < 50:
         raise ValueError(
-            f"too few pushes to fit slide bounds: {len(speed)} ({slow.sum()} of 0.1-"
-            f"{SATURATION_SPEED} m/s); need 50 (20)"
+            f"too few pushes to fit slide bounds: {len(speed)} ({low.sum()} up to {LOW_SPEED} "
+            f"m/s, {slow.sum()} of {LOW_SPEED}-{SATURATION_SPEED} m/s); need 50 (20, 20)"
         )
     top = float(np.quantile(along, quantile))
+    base = float(np.quantile(along[low], quantile))
+    slope = 0.0
+    for lo in np.arange(LOW_SPEED, SATURATION_SPEED, SPEED_BAND):
+        band = (speed > lo) & (speed <= lo + SPEED_BAND)
+        if band.sum() >= 5:
+            slope = max(slope, (float(np.quantile(along[band], quantile)) - base) / lo)
     return {
-        "slide_per_speed": float(np.quantile(along[slow] / speed[slow], quantile)),
+        "slide_base": base,
+        "slide_per_speed": float(slope),
         "slide_max": top,
         "slide_sideways": float(np.quantile(across, quantile)) / max(top, 1e-9),
     }
