@@ -184,7 +184,7 @@ def fit_slides(
     """The governor's slide bounds (`Workspace.slide_*`) from measured pushes
     (`push_slides`): `slide_max` the `quantile` of the slides along the push; `slide_base`
     the `quantile` of the slides of pushes up to `LOW_SPEED`; `slide_per_speed` the least
-    slope above it that holds, in every 0.25 m/s band of speeds up to `SATURATION_SPEED`,
+    slope above it that holds, in every `SPEED_BAND` of speeds up to `SATURATION_SPEED`,
     the band's `quantile` at the band's lowest speed; `slide_sideways` the ratio of the two
     directions' quantiles. Pushes after which the chain was lost have no rest pose and are
     missing: the bounds are low by what they would add."""
