@@ -22,9 +22,14 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=8)
     parser.add_argument("--seed", type=int, default=4242)
     args = parser.parse_args()
-    setting = get_setting(args.setting)
+    if args.chains < 1 or args.runs < 1:
+        parser.error("--chains and --runs must be >= 1")
+    try:  # before any work
+        setting = get_setting(args.setting)
+        predictor, _, policy = model_and_policy("tp+", args.setting)
+    except (ValueError, OSError) as err:
+        parser.error(str(err))
     k = setting.env_config().pushes
-    predictor, _, policy = model_and_policy("tp+", args.setting)
     robot = SimRobot(setting, seed=args.seed, pushes=k * args.runs)
     if args.no_governor:
         robot.governor = None

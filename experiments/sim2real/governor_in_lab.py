@@ -30,13 +30,17 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=777)
     args = parser.parse_args()
     torch.set_num_threads(1)
-    setting = get_setting(args.setting)
-    pushes = setting.env_config().pushes
-    shipped = TargetWorldRobot(setting, lab=args.lab).governor
+    if args.chains < 1 or args.runs < 1:
+        parser.error("--chains and --runs must be >= 1")
     try:  # before any work
+        setting = get_setting(args.setting)
+        shipped = TargetWorldRobot(setting, lab=args.lab).governor
+        if shipped is None:
+            raise ValueError(f"{setting.name}'s robot follows the chain: it has no governor")
         governors = {"training": shipped, "fitted": fit_governor(shipped, args.fit)}
     except (ValueError, OSError) as err:
         parser.error(str(err))
+    pushes = setting.env_config().pushes
     for name, governor in governors.items():
         for model in ("tp+", "rp"):
             predictor, _, policy = model_and_policy(model, setting.name)

@@ -33,8 +33,8 @@ def main() -> None:
     parser.add_argument("--setting", default="real-ur10")
     parser.add_argument("--quantile", type=float, default=0.99)
     args = parser.parse_args()
-    physics = get_setting(args.setting).physics()
     try:
+        physics = get_setting(args.setting).physics()
         speed, along, across = push_slides(*pushes_of(args.source), physics)
         bounds = fit_slides(speed, along, across, args.quantile)
     except (ValueError, OSError) as err:
