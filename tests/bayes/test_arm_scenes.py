@@ -1,10 +1,11 @@
 import numpy as np
 import pytest
 
+from masspush.bayes import arm_scenes
 from masspush.bayes.arm_scenes import ArmScene, ArmSimulator
 from masspush.settings import get_setting
 from masspush.sim.chain import ChainParams
-from masspush.sim.pushers import make_pusher
+from masspush.sim.pushers import make_pusher, on_batch_path
 from masspush.sim.simulate import ChainSim
 
 PHYSICS = get_setting("2link-0.1-1").physics()
@@ -40,16 +41,36 @@ def fresh_start(chain: ChainParams) -> np.ndarray:
     return ChainSim(chain, PHYSICS).config()
 
 
-def test_worker_processes_give_the_same_outcomes_as_one():
-    rng = np.random.default_rng(0)
-    m = 4
-    starts = np.repeat(START[None], m, 0)
+def _candidates(m: int, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    starts = START[None] + rng.normal(0, 0.02, (m, len(START)))
     actions = rng.uniform(-1, 1, (m, 2))
+    actions[0] = (0.0, 0.3)  # a push of zero speed: no arm
     masses, friction = rng.uniform(0.1, 1, (m, 2)), rng.uniform(0.5, 1, m)
-    one = ArmSimulator(PHYSICS, "kuka", workers=1).simulate(LENGTHS, starts, actions, masses,
-                                                           friction)  # fmt: skip
+    return starts, actions, masses, friction
+
+
+def test_worker_processes_give_the_same_outcomes_as_one(monkeypatch):
+    monkeypatch.setattr(arm_scenes, "on_batch_path", lambda pusher: False)
+    starts, actions, masses, friction = _candidates(4)
+    one = ArmSimulator(PHYSICS, "kuka", workers=1)
+    assert not one.lockstep
+    one = one.simulate(LENGTHS, starts, actions, masses, friction)
     two = ArmSimulator(PHYSICS, "kuka", workers=2)
     both = two.simulate(LENGTHS, starts, actions, masses, friction)
     two.close()
     np.testing.assert_array_equal(one[0], both[0])
     assert one[1] == both[1]
+
+
+@pytest.mark.skipif(not on_batch_path("kuka"), reason="arms in lockstep need the compiled law")
+def test_candidates_in_lockstep_end_where_the_reused_scene_puts_them(scene):
+    starts, actions, masses, friction = _candidates(10, seed=3)
+    simulator = ArmSimulator(PHYSICS, "kuka", workers=2)
+    assert simulator.lockstep
+    configs, failures = simulator.simulate(LENGTHS, starts, actions, masses, friction)
+    for i in range(len(masses)):
+        config, failure, _ = scene.push(starts[i], actions[i], masses[i], float(friction[i]))
+        assert failure == failures[i]
+        np.testing.assert_array_equal(config, configs[i])
+    assert failures.count(None) >= 8

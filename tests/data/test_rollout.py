@@ -12,18 +12,30 @@ from masspush.data.rollout import (
     run_batch,
     run_env,
 )
+from masspush.sim.pushers import on_batch_path
 
 
-@pytest.mark.parametrize("n_links", [2, 3])
-def test_batch_and_environment_engines_record_identical_episodes(n_links):
-    config = EnvConfig(physics=PhysicsConfig(n_links=n_links))
-    idx = np.arange(12)
+def _same_episodes(config: EnvConfig, n: int) -> Episodes:
+    idx = np.arange(n)
     a = run_batch(config, RandomPolicy(), idx, TRAIN, 5)
     b = run_env(config, RandomPolicy(), idx, TRAIN, 5)
     for name in ("observations", "configs", "actions", "executed", "failure", "masses", "seed"):
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    return a
+
+
+@pytest.mark.parametrize("n_links", [2, 3])
+def test_batch_and_environment_engines_record_identical_episodes(n_links):
+    a = _same_episodes(EnvConfig(physics=PhysicsConfig(n_links=n_links)), 12)
     assert a.observations.shape == (12, n_links + 1, n_links + 2)
     assert a.actions.shape == (12, n_links, 2)
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not on_batch_path("kuka"), reason="arms in lockstep need the compiled law")
+def test_an_arm_in_lockstep_records_the_episodes_of_one_at_a_time():
+    a = _same_episodes(EnvConfig(physics=PhysicsConfig(n_links=2), pusher="kuka"), 6)
+    assert a.ok.sum() >= 4
 
 
 def test_training_and_evaluation_seeds_never_meet():

@@ -5,6 +5,7 @@ from masspush.config import EnvConfig
 from masspush.learn.features import history_dim, paper_reward
 from masspush.learn.vec_env import BatchPushVecEnv
 from masspush.settings import get_setting
+from masspush.sim.pushers import on_batch_path
 
 CONFIG = EnvConfig(physics=get_setting("2link-0.1-1").physics(), pusher="stiff")
 
@@ -48,6 +49,18 @@ def test_the_same_seed_gives_the_same_episodes(predictor_file):
 
 
 @pytest.mark.slow
-def test_arms_are_refused(predictor_file):
-    with pytest.raises(ValueError, match="stiff pusher only"):
-        BatchPushVecEnv(EnvConfig(physics=CONFIG.physics, pusher="kuka"), str(predictor_file), 2)
+@pytest.mark.skipif(not on_batch_path("kuka"), reason="arms in lockstep need the compiled law")
+def test_an_arm_pushes_in_lockstep(predictor_file):
+    config = EnvConfig(physics=CONFIG.physics, pusher="kuka")
+    vec = BatchPushVecEnv(config, str(predictor_file), n_envs=3, seed=0)
+    _, rewards, dones, infos = play(vec, np.random.default_rng(0))
+    assert dones[1].all() and np.isfinite(rewards[0]).all()
+    assert sum(i["failure"] is None for i in infos[0]) >= 2
+
+
+@pytest.mark.slow
+def test_a_stationary_robot_is_refused(predictor_file):
+    # Its pushes go through the reach governor, which the lockstep environments lack.
+    config = EnvConfig(physics=CONFIG.physics, pusher="ur10-stationary")
+    with pytest.raises(ValueError, match="batch path"):
+        BatchPushVecEnv(config, str(predictor_file), 2)

@@ -38,3 +38,4 @@ def test_bench_arm_reports_both_throughputs_and_checks_the_compiled_law():
     assert result["goal"] == 0.6 and result["meets_goal"] == (result["ratio"] >= 0.6)
     assert result["identical"] and result["largest_difference"] <= 1e-9
     assert result["arm_steps_per_push"] > 0 and result["stiff_steps_per_push"] > 0
+    assert result["arm_engine"] == ("lockstep" if result["compiled"] else "processes")

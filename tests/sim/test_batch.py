@@ -1,9 +1,13 @@
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from masspush.config import PhysicsConfig
+from masspush.settings import get_setting
 from masspush.sim.batch import ChainBatch
 from masspush.sim.chain import sample_chain
+from masspush.sim.pushers import compiled, make_pusher
 from masspush.sim.simulate import ChainSim
 
 
@@ -16,18 +20,7 @@ def test_batch_gives_the_same_rest_poses_as_one_at_a_time(n_links):
     assert len({c.masses for c in chains}) == 24 and len({c.friction for c in chains}) == 24
     actions = rng.uniform(-1, 1, size=(n_links, len(chains), 2))
 
-    batch = ChainBatch(chains, physics, nthread=2)
-    sims = [ChainSim(c, physics) for c in chains]
-    np.testing.assert_array_equal(batch.configs(), [s.config() for s in sims])
-    for step_actions in actions:
-        batch_outcomes = batch.push(step_actions)
-        for i, sim in enumerate(sims):
-            if batch_outcomes[i] is None:  # skipped after an earlier failure
-                continue
-            outcome = sim.push(step_actions[i])
-            assert outcome == batch_outcomes[i]
-            if outcome.failure is None:
-                np.testing.assert_array_equal(batch.configs()[i], sim.config())
+    _same_as_one_at_a_time("stiff", physics, chains, actions)
 
 
 def test_batch_checks_its_inputs():
@@ -37,7 +30,71 @@ def test_batch_checks_its_inputs():
         ChainBatch([], physics)
     with pytest.raises(ValueError, match="n_links"):
         ChainBatch(chains, PhysicsConfig(n_links=3))
-    with pytest.raises(ValueError, match="stiff pusher only"):
-        ChainBatch(chains, physics, pusher="kuka")
+    with pytest.raises(ValueError, match="unknown pusher"):
+        ChainBatch(chains, physics, pusher="robot")
     with pytest.raises(ValueError, match="shape"):
         ChainBatch(chains, physics).push(np.zeros((2, 2)))
+
+
+def _same_as_one_at_a_time(pusher, physics, chains, actions) -> list[str | None]:
+    """Push `chains` in a batch and one at a time; assert equal outcomes and rest poses
+    (exactly: the same law in the same order); return every push's failure."""
+    batch = ChainBatch(chains, physics, nthread=2, pusher=pusher)
+    sims = [ChainSim(c, physics, make_pusher(pusher)) for c in chains]
+    assert batch.initial_failures == [s.initial_failure for s in sims]
+    np.testing.assert_array_equal(batch.configs(), [s.config() for s in sims])
+    failures = []
+    batch.failed[:] = [s.initial_failure is not None for s in sims]
+    for step_actions in actions:
+        batch_outcomes = batch.push(step_actions)
+        for i, sim in enumerate(sims):
+            if batch_outcomes[i] is None:  # skipped after an earlier failure
+                continue
+            outcome = sim.push(step_actions[i])
+            assert outcome == batch_outcomes[i]
+            failures.append(outcome.failure)
+            if outcome.failure is None:
+                np.testing.assert_array_equal(batch.configs()[i], sim.config())
+    return failures
+
+
+needs_compiled_law = pytest.mark.skipif(
+    compiled.library() is None, reason="the arms' batch path runs the compiled law"
+)
+
+
+@needs_compiled_law
+@pytest.mark.slow
+@pytest.mark.parametrize("arm", ["kuka", "ur10"])
+@pytest.mark.parametrize("n_links", [2, 3])
+def test_arms_in_lockstep_give_the_rest_poses_of_one_at_a_time(arm, n_links):
+    physics = PhysicsConfig(n_links=n_links)
+    rng = np.random.default_rng(10 + n_links)
+    chains = [sample_chain(physics, rng) for _ in range(5)]
+    actions = rng.uniform(-1, 1, size=(3, len(chains), 2))
+    actions[0, 1] = (0.0, 0.4)  # a push of zero speed: the arm does nothing
+    failures = _same_as_one_at_a_time(arm, physics, chains, actions)
+    assert failures.count(None) >= 12
+
+
+@needs_compiled_law
+@pytest.mark.slow
+def test_arms_in_lockstep_fail_as_one_at_a_time():
+    # Links 8 cm tall: the KUKA's wrist meets them in some pushes ("arm_contact"), while
+    # the other chains of the batch go on.
+    physics = replace(PhysicsConfig(), link_height=0.08)
+    chains = [sample_chain(physics, np.random.default_rng(1007 + i)) for i in range(4)]
+    actions = np.array([[(0.31, -0.64), (0.84, 0.36), (-0.87, 0.58), (0.54, -0.33)]])
+    failures = _same_as_one_at_a_time("kuka", physics, chains, actions)
+    assert failures == [None, "arm_contact", "arm_contact", "arm_contact"]
+
+
+@needs_compiled_law
+@pytest.mark.slow
+def test_a_stationary_arm_in_lockstep_loses_chains_as_one_at_a_time():
+    physics = get_setting("real-ur10").env_config().physics
+    rng = np.random.default_rng(3)
+    chains = [sample_chain(physics, rng) for _ in range(16)]
+    actions = rng.uniform(-1, 1, size=(4, len(chains), 2))
+    failures = _same_as_one_at_a_time("ur10-stationary", physics, chains, actions)
+    assert "left_workspace" in failures and failures.count(None) >= 48

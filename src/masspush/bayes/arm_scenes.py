@@ -1,7 +1,6 @@
 """Arm pushes for many candidate chains: the particle filter's simulator where an arm pushes.
 
-MuJoCo's batch path runs open-loop pushers only; an arm needs its operational-space
-control law every step, in Python. Compiling a scene per candidate costs more than the push
+Compiling a scene per candidate costs more than the push
 (~25 ms) and the arm's inverse kinematics from its home pose ~150 ms, so `ArmScene` compiles
 one scene per chain geometry and reuses it: each candidate's masses, inertias and table
 friction are written into the model (`mj_setConst` recomputes what depends on them), the
@@ -9,7 +8,10 @@ chain is placed at the start pose and settled, and the arm starts every push fro
 ready pose (its joints after one push: the base is placed behind each push facing along
 it, so the inverse kinematics of any push starts close to its solution). Every candidate's
 outcome is thus a function of its own inputs alone, whatever else the scene simulated
-before, and `ArmSimulator` spreads the candidates over worker processes.
+before. `LockstepScenes` runs the same two scenes for all candidates at once on MuJoCo's
+batch (the arms' compiled law as its control callback, `masspush.sim.batch.ArmLockstep`),
+with the same outcomes; `ArmSimulator` uses it, or, without the compiled law, spreads
+`ArmScene`s over worker processes.
 
 Once the arm is parked it no longer touches the chain, but its six joints would still be
 simulated at every step of the settling, which takes as long as the push: the chain
@@ -24,11 +26,14 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 
 import mujoco
+import mujoco.batch
 import numpy as np
 
 from masspush.config import PhysicsConfig
+from masspush.sim.actions import action_to_push, push_geometry
+from masspush.sim.batch import ArmLockstep, settle
 from masspush.sim.chain import ChainParams, box_inertia
-from masspush.sim.pushers import make_pusher
+from masspush.sim.pushers import make_pusher, on_batch_path
 from masspush.sim.simulate import ChainSim
 
 READY_ACTION = np.array([0.3, 0.0])
@@ -109,6 +114,90 @@ class ArmScene:
         target.qacc_warmstart[: self.nv] = source.qacc_warmstart[: self.nv]
 
 
+class LockstepScenes:
+    """`ArmScene.push` for many candidates at once on MuJoCo's batch: the same two scenes,
+    each candidate's masses, inertias and friction written into its simulation's model
+    (`Batch.expand`, then `set_const`), the settling of all candidates together, and the
+    arms in lockstep (`masspush.sim.batch.ArmLockstep`). The same rest poses and failures
+    as `ArmScene`, candidate for candidate (tested)."""
+
+    def __init__(self, physics: PhysicsConfig, pusher: str, lengths: tuple[float, ...],
+                 nthread: int = 0):  # fmt: skip
+        self.scene = ArmScene(physics, pusher, lengths)
+        self.physics, self.nthread = physics, nthread
+
+    def simulate(
+        self, starts: np.ndarray, actions: np.ndarray, masses: np.ndarray, friction: np.ndarray
+    ) -> tuple[np.ndarray, list[str | None]]:
+        """Rest configurations (m, d) and failures of the candidates, as `ArmScene.push`."""
+        scene, ph = self.scene, self.physics
+        m = len(masses)
+        batches = []
+        for sim, (bodies, table) in zip((scene.sim, scene.settler), scene.ids, strict=True):
+            batch = mujoco.batch.Batch(sim.model, m, self.nthread)
+            mass, inertia = batch.expand("body_mass"), batch.expand("body_inertia")
+            batch.expand("geom_friction")[:, table, 0] = friction
+            for j, (body, length) in enumerate(zip(bodies, scene.lengths, strict=True)):
+                mass[:, body] = masses[:, j]
+                size = (length, ph.link_width, ph.link_height)
+                for i in range(m):
+                    inertia[i, body] = box_inertia(float(masses[i, j]), size)
+            batch.set_const()
+            batches.append(batch)
+        arm, chain = batches
+        everyone = np.arange(m)
+        # Settle at the start pose in the chain-only scene, push in the arm's, settle again.
+        chain.state[:] = scene.homes[1]
+        qpos = chain.bind("qpos")
+        for i in everyone:
+            scene.settler.layout.set_config(qpos[i], np.asarray(starts[i], float),
+                                            ph.link_height / 2)  # fmt: skip
+        chain.bind("qvel")[:] = 0.0
+        chain.forward()
+        failures, _ = settle(chain, everyone, scene.settler.layout, ph)
+        arm.state[:] = scene.homes[0]
+        self._hand_over(chain, arm)
+        arm.bind("qpos")[:, scene.nq :] = scene.ready
+        arm.forward()
+        configs = scene.settler.layout.config(chain.bind("qpos")).copy()
+        pushing = [i for i in everyone if failures[i] is None]
+        if not pushing:
+            return configs, failures
+        layout = scene.sim.layout
+        start_configs = layout.config(arm.bind("qpos"))
+        geometries = {}
+        for i in pushing:
+            spec = action_to_push(np.asarray(actions[i], float), scene.lengths, ph)
+            geometries[i] = push_geometry(spec, start_configs[i], scene.lengths, ph)
+        saved = arm.state.copy()
+        lockstep = ArmLockstep(arm, scene.sim.pusher, scene.sim.model, ph)
+        pushed, _, _ = lockstep.deliver(geometries)
+        nan = [i for i in pushing if pushed[i] == "nan"]
+        if nan:
+            arm.state[nan] = saved[nan]
+        after = layout.config(arm.bind("qpos"))
+        for i in pushing:
+            if pushed[i] is not None:
+                failures[i], configs[i] = pushed[i], after[i]
+        sliding = np.array([i for i in pushing if pushed[i] is None], dtype=int)
+        if sliding.size:
+            chain.state[sliding] = scene.homes[1]
+            self._hand_over(arm, chain, sliding)
+            chain.forward(sliding)
+            settled, _ = settle(chain, sliding, scene.settler.layout, ph)
+            final = scene.settler.layout.config(chain.bind("qpos"))
+            for i in sliding:
+                failures[i], configs[i] = settled[i], final[i]
+        return configs, failures
+
+    def _hand_over(self, source, target, ids=None) -> None:
+        """`ArmScene._hand_over` for simulations `ids` (all by default) of two batches."""
+        nq, nv = self.scene.nq, self.scene.nv
+        ids = slice(None) if ids is None else ids
+        for name, n in (("qpos", nq), ("qvel", nv), ("qacc_warmstart", nv)):
+            target.bind(name)[ids, :n] = source.bind(name)[ids, :n]
+
+
 @dataclass(frozen=True)
 class _Job:
     physics: PhysicsConfig
@@ -142,13 +231,17 @@ def _run(job: _Job) -> tuple[np.ndarray, list[str | None]]:
 
 
 class ArmSimulator:
-    """Arm pushes of many candidate chains, spread over `workers` processes (1: here)."""
+    """Arm pushes of many candidate chains: in lockstep on MuJoCo's batch on `workers`
+    threads (`LockstepScenes`) where the arm runs there (its compiled law is built), else
+    spread over `workers` processes (1: here). Both give the same outcomes."""
 
     def __init__(self, physics: PhysicsConfig, pusher: str, workers: int = 0):
         self.physics = physics
         self.pusher = pusher
         self.workers = workers or os.cpu_count() or 1
         self._pool: ProcessPoolExecutor | None = None
+        self.lockstep = on_batch_path(pusher)
+        self._scenes: dict[tuple[float, ...], LockstepScenes] = {}
 
     def simulate(
         self, lengths: tuple[float, ...], starts: np.ndarray, actions: np.ndarray,
@@ -156,6 +249,13 @@ class ArmSimulator:
     ) -> tuple[np.ndarray, list[str | None]]:  # fmt: skip
         """Rest configurations (m, d) and failures after pushing each chain (masses,
         friction) from its start pose (m, d) with its action (m, 2)."""
+        if self.lockstep:
+            scenes = self._scenes.get(tuple(lengths))
+            if scenes is None:
+                self._scenes.clear()  # one chain (its lengths) per filter episode
+                scenes = LockstepScenes(self.physics, self.pusher, tuple(lengths), self.workers)
+                self._scenes[tuple(lengths)] = scenes
+            return scenes.simulate(starts, actions, np.asarray(masses), np.asarray(friction))
         m = len(masses)
         inputs = (starts, actions, masses, friction)
         parts = np.array_split(np.arange(m), min(self.workers, m))

@@ -54,7 +54,8 @@ def _recipe_options(p: argparse.ArgumentParser) -> None:
     from masspush.learn.recipe import RecipeConfig
 
     renamed = {"steps": "ppo_steps", "n_envs": "envs", "runs": "policy_runs",
-               "reward": "policy_reward", "loss_reward": "policy_loss_reward"}  # fmt: skip
+               "reward": "policy_reward", "loss_reward": "policy_loss_reward",
+               "lockstep_arms": "lockstep_arms"}  # fmt: skip
     add_fields(p, PolicyConfig, only=("algo", *renamed), prefix="policy_", rename=renamed)
     add_fields(p, RecipeConfig, only=RECIPE_FIELDS)
 

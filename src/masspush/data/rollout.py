@@ -25,7 +25,7 @@ import numpy as np
 from masspush.cluster.pool import Workers, gather, is_pool, split
 from masspush.config import EnvConfig
 from masspush.sim.chain import sample_chain
-from masspush.sim.pushers import pusher_kind, reach_governor
+from masspush.sim.pushers import on_batch_path, reach_governor
 from masspush.sim.simulate import FAILURES
 
 TRAIN, EVAL = 0, 1
@@ -305,7 +305,7 @@ def run_episodes(
         return Episodes.concatenate(
             gather(workers.imap(run_chunk, chunks, shared, desc), len(chunks))
         )
-    if pusher_kind(env_config.pusher).batch:
+    if on_batch_path(env_config.pusher):
         return run_batch(env_config, policy, indices, purpose, base_seed, threads)
     workers = workers or os.cpu_count() or 1
     if workers == 1 or len(indices) < 2:

@@ -37,7 +37,7 @@ from masspush.learn.features import (
     push_reward,
 )
 from masspush.learn.vec_env import BatchPushVecEnv
-from masspush.sim.pushers import pusher_kind, reach_governor
+from masspush.sim.pushers import on_batch_path, pusher_kind, reach_governor
 
 ChainEnvFactory = Callable[[], gym.Env]
 """Makes the environment whose chains the policy pushes, inside each worker: one that speaks
@@ -204,6 +204,15 @@ class PolicyConfig:
     a2 = 0 is the joint, where a fast push tips the chain over, and either side of it is as
     good as the other, so the gradient out of it vanishes. (0.5, 0.5) is a medium-speed push
     on the middle of the second link, which PPO then moves."""
+    lockstep_arms: bool = False
+    """An arm's environments in lockstep on the batch path (one process, MuJoCo's threads,
+    the arm's compiled law as its control callback) instead of one process each [ours].
+    The physics is the same push for push (tested); the transitions are the batch
+    environments' (`masspush.learn.vec_env`: a failed push freezes its chain until the
+    episode's end, chains drawn from another seed stream), so a policy trains differently.
+    Off by default: as fast as the processes on 2 cores (50.7 against 51.7 pushes/s,
+    docs/notebook/2026-12-01-arm-speed.md), and runs already trained used the processes.
+    The stiff pusher always runs in lockstep."""
     seed: int = 0
     """Seed of PPO (weights, sampled actions) and of its environments."""
 
@@ -242,7 +251,7 @@ class PolicyConfig:
 def make_vec_env(
     env_config: EnvConfig, predictor_path: str | os.PathLike, n_envs: int, seed: int,
     chain_env: ChainEnvFactory | None = None, workers: Workers = None, runs: int = 1,
-    reward: str = "paper", loss_reward: float = LOSS_REWARD,
+    reward: str = "paper", loss_reward: float = LOSS_REWARD, lockstep_arms: bool = False,
 ):  # fmt: skip
     """`n_envs` pushing episodes: for a pusher with a batch path in lockstep on the
     multi-threaded batch path (`masspush.learn.vec_env`), for an arm, in another world
@@ -254,7 +263,9 @@ def make_vec_env(
 
     from masspush.learn.subproc_vec_env import WatchedSubprocVecEnv
 
-    batch = pusher_kind(env_config.pusher).batch and chain_env is None
+    kind = pusher_kind(env_config.pusher)
+    batch = on_batch_path(env_config.pusher) and chain_env is None
+    batch = batch and (lockstep_arms or not kind.arm)
     if batch and runs == 1 and reward == "paper" and loss_reward == LOSS_REWARD:
         vec = BatchPushVecEnv(env_config, str(predictor_path), n_envs, seed)
         vec.seed(seed)
@@ -373,7 +384,7 @@ def train_policy(
         return final
     vec_env = make_vec_env(
         env_config, predictor_path, config.n_envs, config.seed, chain_env, workers,
-        config.runs, config.reward, config.loss_reward,
+        config.runs, config.reward, config.loss_reward, config.lockstep_arms,
     )  # fmt: skip
     try:
         checkpoints = sorted(out.glob("checkpoint_*_steps.zip"), key=_checkpoint_steps)

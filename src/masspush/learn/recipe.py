@@ -117,7 +117,8 @@ class Recipe:
             )
         )
         defaults = PolicyConfig()
-        for name in ("runs", "reward", "loss_reward"):  # fields added after runs were made
+        # fields added after runs were made
+        for name in ("runs", "reward", "loss_reward", "lockstep_arms"):
             if identity["policy"][name] == getattr(defaults, name):
                 del identity["policy"][name]  # as runs made before the field existed say it
         return identity

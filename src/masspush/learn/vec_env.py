@@ -1,4 +1,4 @@
-"""Many pushing episodes in lockstep on MuJoCo's multi-threaded batch (stiff pusher only).
+"""Many pushing episodes in lockstep on MuJoCo's multi-threaded batch (the stiff pusher, arms).
 
 A stable-baselines3 `VecEnv` with the same observations and rewards as
 `masspush.learn.policy.PushPolicyEnv`, but all environments' chains live in one `ChainBatch`,
@@ -19,7 +19,7 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 from masspush.config import EnvConfig
 from masspush.data.rollout import Episodes
 from masspush.learn.features import history_dim, history_features, paper_reward
-from masspush.sim.pushers import pusher_kind
+from masspush.sim.pushers import on_batch_path
 
 
 class BatchPushVecEnv(VecEnv):
@@ -28,10 +28,8 @@ class BatchPushVecEnv(VecEnv):
     def __init__(self, env_config: EnvConfig, predictor_path: str, n_envs: int, seed: int = 0):
         from masspush.learn.predictor import load_model
 
-        if not pusher_kind(env_config.pusher).batch:
-            raise ValueError(
-                f"the batch path runs the stiff pusher only, not {env_config.pusher!r}"
-            )
+        if not on_batch_path(env_config.pusher):
+            raise ValueError(f"{env_config.pusher!r} pushes do not run on the batch path here")
         self.env_config = env_config
         physics = env_config.physics
         self.k, self.n, self.d = env_config.pushes, physics.n_links, physics.obs_dim
@@ -57,7 +55,7 @@ class BatchPushVecEnv(VecEnv):
         physics = self.env_config.physics
         self._rngs = [np.random.default_rng(s) for s in self._seed_sequence.spawn(self.num_envs)]
         chains = [sample_chain(physics, rng) for rng in self._rngs]
-        batch = ChainBatch(chains, physics)
+        batch = ChainBatch(chains, physics, pusher=self.env_config.pusher)
         # A chain that is already unstable before any push is redrawn (rare).
         for _ in range(10):
             bad = np.flatnonzero(batch.initial_failures_mask())
@@ -65,7 +63,7 @@ class BatchPushVecEnv(VecEnv):
                 break
             for e in bad:
                 chains[e] = sample_chain(physics, self._rngs[e])
-            batch = ChainBatch(chains, physics)
+            batch = ChainBatch(chains, physics, pusher=self.env_config.pusher)
         self.batch = batch
         self.alive = ~batch.initial_failures_mask()
         self.obs = np.full((self.num_envs, self.k + 1, self.d), np.nan, np.float32)

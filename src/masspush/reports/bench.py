@@ -103,7 +103,8 @@ class ArmBench:
     episodes: int = 200
     """Episodes of random pushes for each pusher."""
     workers: int | None = None
-    """Processes for the arm (default: one per core); the stiff pusher uses as many threads."""
+    """Threads of the batch path (default: one per core), for the arm in lockstep as for the
+    stiff pusher; processes for an arm without its compiled law."""
     check_pushes: int = 20
     """Pushes simulated with both laws for `identical`."""
     seed: int = 0
@@ -129,7 +130,7 @@ def bench_arm(config: ArmBench = ArmBench()) -> dict:
     steps per push, and whether the compiled law gives the reference's rest poses."""
     from masspush.config import EnvConfig
     from masspush.data.rollout import NOT_RUN, TRAIN, RandomPolicy, run_episodes
-    from masspush.sim.pushers import compiled, make_pusher
+    from masspush.sim.pushers import compiled, make_pusher, on_batch_path
     from masspush.sim.simulate import ChainSim
 
     physics = PhysicsConfig(n_links=config.links, mass_range=(0.1, 1.0))
@@ -139,7 +140,7 @@ def bench_arm(config: ArmBench = ArmBench()) -> dict:
         env_config = EnvConfig(physics=physics, pusher=name)
         start = time.perf_counter()
         run = run_episodes(env_config, RandomPolicy(), np.arange(config.episodes), TRAIN,
-                           config.seed, workers)  # fmt: skip
+                           config.seed, workers, threads=workers)  # fmt: skip
         rate[name] = int((run.failure != NOT_RUN).sum()) / (time.perf_counter() - start)
     # The compiled law against the Python reference, and the steps a push takes.
     rng = np.random.default_rng(config.seed)
@@ -162,6 +163,7 @@ def bench_arm(config: ArmBench = ArmBench()) -> dict:
         "links": config.links,
         "arm": config.arm,
         "compiled": compiled.library() is not None,
+        "arm_engine": "lockstep" if on_batch_path(config.arm) else "processes",
         "workers": workers,
         "arm_pushes_per_s": rate[config.arm],
         "stiff_pushes_per_s": rate[IDEAL_PUSHER],

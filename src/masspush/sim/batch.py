@@ -1,30 +1,46 @@
 """Many chains, pushed together on every core through MuJoCo's native batch.
 
 Each chain gets its own compiled model (masses, friction and lengths differ; the models
-share one layout, as `mujoco.batch.Batch.set_models` requires). A push runs the pusher's
-open-loop velocity commands as one `rollout`, then steps all still-moving chains in
-chunks of `rest_check_steps`, dropping each as it comes to rest. The rest and failure
-checks are the same code at the same steps as the one-at-a-time `ChainSim`, so the two
-paths give the same rest poses.
+share one layout, as `mujoco.batch.Batch.set_models` requires). The stiff pusher's push
+runs its open-loop velocity commands as one `rollout`. An arm's push is planned (inverse
+kinematics) chain by chain in Python, then every chain's arm runs its operational-space
+law in lockstep: the compiled law as MuJoCo's control callback (`osc_law.c`,
+`masspush_control`), each chain's push and phase in its `mjData.userdata`, one batch step
+at a time while any arm acts. Then all still-moving chains are stepped, dropping each as it
+comes to rest. The rest and failure checks are the same code at the same steps as the
+one-at-a-time `ChainSim`, so the two paths give the same rest poses (tested, arms
+included).
 """
 
 from __future__ import annotations
 
+import ctypes
 from collections.abc import Sequence
+from functools import cache
 
 import mujoco
 import mujoco.batch
 import numpy as np
 
 from masspush.config import PhysicsConfig
-from masspush.sim.actions import PushSpec, action_to_push, push_geometry
+from masspush.sim.actions import PushGeometry, PushSpec, action_to_push, push_geometry
 from masspush.sim.chain import INITIAL_KEY, ChainLayout, ChainParams, compile_scene
-from masspush.sim.pushers import IDEAL_PUSHER, StiffPusher, pusher_kind
+from masspush.sim.pushers import IDEAL_PUSHER, ArmPusher, Pusher, make_pusher
+from masspush.sim.pushers import compiled as compiled_law
+from masspush.sim.pushers.arm import ARM_PARK, PushPlan
 from masspush.sim.simulate import OK, PushOutcome, classify, failure_name, settle_cap_steps
 
 
+@cache
+def _shared_pusher(name: str) -> Pusher:
+    """One pusher of each kind for all batches of this process: an arm keeps the start
+    poses its inverse kinematics solved (each a function of the push's geometry alone, so
+    sharing them changes no result), which a new batch per episode would solve again."""
+    return make_pusher(name)
+
+
 class ChainBatch:
-    """A batch of chains, each at rest between pushes, pushed by the stiff pusher."""
+    """A batch of chains, each at rest between pushes, pushed by the stiff pusher or an arm."""
 
     def __init__(
         self,
@@ -33,12 +49,6 @@ class ChainBatch:
         nthread: int = 0,
         pusher: str = IDEAL_PUSHER,
     ):
-        if not pusher_kind(pusher).batch:
-            # An arm needs Python control at every step, which MuJoCo's C batch cannot run.
-            raise ValueError(
-                f"the batch path runs the stiff pusher only, not {pusher!r}; "
-                "simulate arm pushes one chain at a time with ChainSim (or the environment)"
-            )
         if not chains:
             raise ValueError("ChainBatch needs at least one chain")
         for chain in chains:
@@ -47,24 +57,32 @@ class ChainBatch:
                     f"every chain must have physics.n_links = {physics.n_links} links, "
                     f"got one with {chain.n_links}"
                 )
+        self.pusher = _shared_pusher(pusher)
+        if isinstance(self.pusher, ArmPusher):
+            _compiled_law(pusher)  # refused before anything is compiled
         self.chains = list(chains)
         self.physics = physics
-        self.pusher = StiffPusher()
         self.models = [compile_scene(c, physics, self.pusher.add_to) for c in chains]
         self.batch = mujoco.batch.Batch(self.models[0], len(chains), nthread)
         self.batch.set_models(self.models)
         self.batch.reset(keyframe=INITIAL_KEY)
         self.layout = ChainLayout.of(self.models[0], physics.n_links)
-        pusher_joint = self.models[0].joint("pusher_x")
-        self._pusher_q = int(pusher_joint.qposadr[0])
-        self._pusher_v = int(pusher_joint.dofadr[0])
         self._qpos = self.batch.bind("qpos")
         self._qvel = self.batch.bind("qvel")
         self._ctrl = self.batch.bind("ctrl")
+        self._arms: ArmLockstep | None = None
+        if isinstance(self.pusher, ArmPusher):
+            self._arms = ArmLockstep(self.batch, self.pusher, self.models[0], physics)
+        else:
+            pusher_joint = self.models[0].joint("pusher_x")
+            self._pusher_q = int(pusher_joint.qposadr[0])
+            self._pusher_v = int(pusher_joint.dofadr[0])
         self.failed = np.zeros(len(chains), dtype=bool)
         """Chains whose simulation has failed; they are not pushed again."""
         initial, _ = self.settle(np.arange(len(chains)))
-        self.initial_failures = initial
+        self.initial_failures = [
+            f if f is not None else self._reach_failure(i) for i, f in enumerate(initial)
+        ]
 
     def initial_failures_mask(self) -> np.ndarray:
         """(nsim,) bool: chains that failed already while settling before the first push."""
@@ -83,12 +101,26 @@ class ChainBatch:
 
         Returns one outcome per chain, None for chains skipped after an earlier failure.
         """
+        if self._arms is not None:
+            return self._push_arms(actions)
         ids, specs, controls = self.prepare_push(actions)
         if ids.size == 0:
             return [None] * self.nsim
         saved = self.batch.state[ids].copy()
         self.deliver(ids, controls)
         failures, steps = self.settle(ids)
+        return self._outcomes(
+            ids, saved, dict(zip(ids, specs, strict=True)), failures,
+            np.full(self.nsim, controls.shape[1]), steps,
+            np.array([s.speed for s in specs]),  # the stiff pusher holds its speed
+        )  # fmt: skip
+
+    def _outcomes(
+        self, ids: np.ndarray, saved: np.ndarray, specs, failures, push_steps: np.ndarray,
+        settle_steps: np.ndarray, speeds: np.ndarray,
+    ) -> list[PushOutcome | None]:  # fmt: skip
+        """The pushes' outcomes, the failed chains marked and those that went NaN put back
+        where they were before the push (`ChainSim.push`). `speeds` is by row of `ids`."""
         nan = [i for i in ids if failures[i] == "nan"]
         if nan:
             self.batch.state[nan] = saved[np.isin(ids, nan)]
@@ -97,13 +129,46 @@ class ChainBatch:
             if failures[i] is not None:
                 self.failed[i] = True
             outcomes[i] = PushOutcome(
-                push=specs[row],
+                push=specs[i],
                 failure=failures[i],
-                settle_time=steps[i] * self.physics.timestep,
-                steps=controls.shape[1] + steps[i],
-                executed_speed=specs[row].speed,  # the stiff pusher holds its speed
+                settle_time=settle_steps[i] * self.physics.timestep,
+                steps=int(push_steps[i] + settle_steps[i]),
+                executed_speed=float(speeds[row]),
             )
         return outcomes
+
+    def _push_arms(self, actions: np.ndarray) -> list[PushOutcome | None]:
+        """`push` for an arm: each push planned, then the arms and chains in lockstep.
+        Step for step what `ChainSim.push` does with `ArmPusher.deliver` (compiled)."""
+        assert self._arms is not None
+        actions = np.asarray(actions, dtype=float)
+        if actions.shape != (self.nsim, 2):
+            raise ValueError(f"actions must have shape ({self.nsim}, 2), got {actions.shape}")
+        ids = np.flatnonzero(~self.failed)
+        saved = self.batch.state[ids].copy()
+        configs = self.configs()
+        specs, geometries = {}, {}
+        for i in ids:
+            chain = self.chains[i]
+            specs[i] = action_to_push(actions[i], chain.lengths, self.physics)
+            geometries[i] = push_geometry(specs[i], configs[i], chain.lengths, self.physics)
+        failures, push_steps, speeds = self._arms.deliver(geometries)
+        settling = np.array(sorted(i for i in ids if failures[i] is None), dtype=int)
+        settle_steps = np.zeros(self.nsim, dtype=int)
+        if settling.size:
+            settled, settle_steps = self.settle(settling)
+            for i in settling:
+                failures[i] = settled[i] if settled[i] is not None else self._reach_failure(i)
+        return self._outcomes(ids, saved, specs, failures, push_steps, settle_steps, speeds[ids])
+
+    def _reach_failure(self, i: int) -> str | None:
+        """`ChainSim.reach_failure` for chain i."""
+        workspace = self.pusher.workspace
+        if workspace is None:
+            return None
+        config = self.layout.config(self._qpos[i : i + 1])[0]
+        inside = workspace.holds(config, self.chains[i].lengths, self.physics.joint_gap)
+        return None if inside else "left_workspace"
 
     def prepare_push(self, actions: np.ndarray) -> tuple[np.ndarray, list[PushSpec], np.ndarray]:
         """Place the pusher for each live chain's push: (chain ids, pushes, (ids, steps, nu)
@@ -139,27 +204,142 @@ class ChainBatch:
 
     def settle(self, ids: np.ndarray) -> tuple[list[str | None], np.ndarray]:
         """Step the chains `ids` until each is at rest or fails; (failure per chain, steps)."""
-        k = self.physics.rest_check_steps
-        cap = settle_cap_steps(self.physics)
-        failures: list[str | None] = [None] * self.nsim
-        steps = np.zeros(self.nsim, dtype=int)
-        moving = np.asarray(ids, dtype=int)
-        taken = 0
-        while moving.size and taken < cap:
-            try:
-                self.batch.step(moving, nstep=k)
-            except mujoco.batch.SimulationError as err:
-                for i in err.ids:
-                    failures[int(i)] = "nan"
-                moving = moving[~np.isin(moving, err.ids)]
-            taken += k
-            steps[moving] = taken
-            code, at_rest = classify(
-                self._qpos[moving], self._qvel[moving], self.layout, self.physics
-            )
-            for i, c in zip(moving[code != OK], code[code != OK], strict=True):
-                failures[int(i)] = failure_name(c)
-            moving = moving[(code == OK) & ~at_rest]
-        for i in moving:
-            failures[int(i)] = "timeout"
-        return failures, steps
+        return settle(self.batch, ids, self.layout, self.physics)
+
+
+def step_batch(batch: mujoco.batch.Batch, ids: np.ndarray, nstep: int) -> list[int]:
+    """Step the simulations `ids`; the ones whose simulation failed (NaN, instability)."""
+    try:
+        batch.step(ids, nstep=nstep)
+    except mujoco.batch.SimulationError as err:
+        return [int(i) for i in err.ids]
+    return []
+
+
+def settle(
+    batch: mujoco.batch.Batch, ids: np.ndarray, layout: ChainLayout, physics: PhysicsConfig
+) -> tuple[list[str | None], np.ndarray]:
+    """Step the chains `ids` of `batch` until each is at rest or fails, checking as
+    `ChainSim.settle` does and at the same steps: (failure per simulation, steps taken)."""
+    k = physics.rest_check_steps
+    cap = settle_cap_steps(physics)
+    qpos, qvel = batch.bind("qpos"), batch.bind("qvel")
+    failures: list[str | None] = [None] * batch.nsim
+    steps = np.zeros(batch.nsim, dtype=int)
+    moving = np.asarray(ids, dtype=int)
+    taken = 0
+    while moving.size and taken < cap:
+        nan = step_batch(batch, moving, k)
+        for i in nan:
+            failures[i] = "nan"
+        moving = moving[~np.isin(moving, nan)]
+        taken += k
+        steps[moving] = taken
+        code, at_rest = classify(qpos[moving], qvel[moving], layout, physics)
+        for i, c in zip(moving[code != OK], code[code != OK], strict=True):
+            failures[int(i)] = failure_name(c)
+        moving = moving[(code == OK) & ~at_rest]
+    for i in moving:
+        failures[int(i)] = "timeout"
+    return failures, steps
+
+
+def _compiled_law(pusher: str) -> ctypes.CDLL:
+    law = compiled_law.library()
+    if law is None:
+        # The lockstep runs the compiled law only; the Python law, one chain at a time.
+        raise RuntimeError(
+            f"the batch path runs {pusher!r} with the compiled control law, which is "
+            "not available here; simulate its pushes one chain at a time (ChainSim)"
+        )
+    return law
+
+
+class ArmLockstep:
+    """An arm's pushes for many simulations of one batch at once: each push planned in
+    Python, then every arm's compiled law as MuJoCo's control callback, one batch step at
+    a time while any arm acts (`osc_law.c`, `masspush_control`). Every simulation's model
+    has the layout of `model` (one scene, other masses, lengths or friction)."""
+
+    def __init__(
+        self, batch: mujoco.batch.Batch, pusher: ArmPusher, model: mujoco.MjModel,
+        physics: PhysicsConfig,
+    ):  # fmt: skip
+        self.batch, self.pusher, self.model, self.physics = batch, pusher, model, physics
+        self.law = _compiled_law(pusher.name)
+        self._qpos, self._qvel = batch.bind("qpos"), batch.bind("qvel")
+        self._ctrl, self._userdata = batch.bind("ctrl"), batch.bind("userdata")
+        self._mocap_pos = batch.bind("mocap_pos")
+        self._mocap_quat = batch.bind("mocap_quat")
+        self._scratch = mujoco.MjData(model)  # where pushes are planned
+        self.arm = pusher._h(model)  # one layout: the same ids everywhere
+
+    def deliver(
+        self, geometries: dict[int, PushGeometry]
+    ) -> tuple[dict[int, str | None], np.ndarray, np.ndarray]:
+        """`ArmPusher.deliver` for each simulation i of `geometries` (the chains at rest):
+        the failures (None: the arm is parked, the chain may slide on), the controlled
+        steps and the executed speeds, (nsim,) each."""
+        u, phase = self._userdata, compiled_law.Userdata
+        failures: dict[int, str | None] = {}
+        acting = []
+        for i, geometry in geometries.items():
+            if geometry.speed <= 0.0:
+                failures[i] = None  # a zero-speed push touches nothing: no arm, no parking
+                continue
+            plan = self.pusher.plan(self.model, self._scratch, self.arm, geometry, self.physics)
+            if plan is None:
+                failures[i] = "unreachable"
+                self.park(i)
+                continue
+            self._set_push(i, plan)
+            acting.append(i)
+        push_steps = np.zeros(self.batch.nsim, dtype=int)
+        speeds = np.zeros(self.batch.nsim)
+        if acting:
+            compiled_law.install_lockstep(self.law, self.pusher._compiled_arm(self.arm))
+        acting_ids = np.array(acting, dtype=int)
+        while acting_ids.size:
+            # The simulations whose arm is done wait: they settle later, all together.
+            nan = step_batch(self.batch, acting_ids, 1)
+            push_steps[acting_ids] += 1
+            for i in nan:
+                failures[i] = "nan"
+            done = [i for i in acting_ids if u[i, phase.PHASE] >= phase.DONE or i in nan]
+            for i in done:
+                speeds[i] = u[i, phase.SPEED]
+                if i not in failures:
+                    failures[i] = phase.FAILURES[int(u[i, phase.PHASE])]
+                u[i, phase.PHASE] = phase.OFF
+                self.park(i)
+            acting_ids = acting_ids[~np.isin(acting_ids, done)]
+        return failures, push_steps, speeds
+
+    def _set_push(self, i: int, plan: PushPlan) -> None:
+        """Simulation i's arm where the plan put it (in the scratch data), its push in
+        userdata."""
+        h, scratch, phase = self.arm, self._scratch, compiled_law.Userdata
+        self._qpos[i, h.qadr] = scratch.qpos[h.qadr]
+        self._qvel[i, h.dadr] = 0.0
+        self._mocap_pos[i, h.mocap] = scratch.mocap_pos[h.mocap]
+        self._mocap_quat[i, h.mocap] = scratch.mocap_quat[h.mocap]
+        u = self._userdata[i]
+        u[:] = 0.0
+        u[phase.PHASE] = phase.VELOCITY
+        u[phase.CONTACT] = -1
+        u[phase.HOLD], u[phase.DEADLINE] = plan.hold, plan.deadline
+        u[phase.RETRACT] = self.pusher.retract_steps(self.model)
+        u[phase.SPEED] = -np.inf
+        u[phase.X : phase.X + 3] = plan.standoff
+        u[phase.R : phase.R + 9] = plan.target_r.ravel()
+        u[phase.V : phase.V + 6] = plan.velocity
+        u[phase.AXIS : phase.AXIS + 3] = plan.direction
+        u[phase.USE_AXIS] = 1.0
+
+    def park(self, i: int) -> None:
+        """`ArmPusher.park` for simulation i."""
+        h = self.arm
+        self._mocap_pos[i, h.mocap] = ARM_PARK
+        self._mocap_quat[i, h.mocap] = [1.0, 0.0, 0.0, 0.0]
+        self._qvel[i, h.dadr] = 0.0
+        self._ctrl[i, h.act] = 0.0

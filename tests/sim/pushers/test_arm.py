@@ -7,7 +7,7 @@ import pytest
 
 from masspush.config import PhysicsConfig
 from masspush.sim.chain import link_poses, sample_chain
-from masspush.sim.pushers import make_pusher
+from masspush.sim.pushers import compiled, make_pusher
 from masspush.sim.pushers.arm import ARM_PARK, ARMS, ASSETS, ArmPusher, tool_rotation
 from masspush.sim.pushers.osc import desired_acceleration, osc_torque, rotation_error
 from masspush.sim.simulate import ChainSim
@@ -191,6 +191,7 @@ def test_scenes_from_the_parsed_arm_are_those_from_its_file(arm):
         parsed = mujoco.MjSpec.from_file(str(ASSETS / ARMS[arm].xml))
         frame = spec.worldbody.add_frame(pos=ARM_PARK.tolist())
         frame.attach_body(parsed.body("base"), f"{arm}/", "")
+        spec.nuserdata = compiled.Userdata.SIZE  # room for the batch path's lockstep
 
     first, again = (saved(compile_scene(chain, physics, pusher.add_to)) for _ in range(2))
     fresh = saved(compile_scene(chain, physics, from_file))

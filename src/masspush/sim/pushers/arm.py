@@ -147,6 +147,25 @@ class PushTrace:
 
 
 @dataclass(frozen=True)
+class PushPlan:
+    """A push made ready (`ArmPusher.plan`): the arm at rest at the standoff, and the target
+    of its velocity phase."""
+
+    standoff: np.ndarray
+    """Where the tip starts, m (the retraction's target too)."""
+    target_r: np.ndarray
+    """The tip's orientation throughout, 3x3."""
+    velocity: np.ndarray
+    """The tip's target velocity (linear, angular), the commanded speed along `direction`."""
+    direction: np.ndarray
+    """The push's direction (x, y, 0): velocity control along it, PD across it."""
+    hold: int
+    """Steps the velocity is held from the first contact."""
+    deadline: int
+    """Steps without contact after which the push is 'unreachable'."""
+
+
+@dataclass(frozen=True)
 class _Handles:
     qadr: np.ndarray
     dadr: np.ndarray
@@ -215,6 +234,9 @@ class ArmPusher:
         # parse's, and a copy costs a tenth of one).
         frame = spec.worldbody.add_frame(pos=ARM_PARK.tolist())
         frame.attach_body(self._spec().copy().body("base"), self.prefix, "")
+        # Room for a push of the batch path's lockstep (`compiled.Userdata`); stepping
+        # ignores it.
+        spec.nuserdata = max(spec.nuserdata, compiled.Userdata.SIZE)
 
     def _h(self, model: mujoco.MjModel) -> _Handles:
         if self._model is not model:
@@ -272,6 +294,71 @@ class ArmPusher:
         if push.speed <= 0.0:
             return None  # a zero-speed push touches nothing
         h = self._h(model)
+        plan = self.plan(model, data, h, push, physics)
+        if plan is None:
+            self.park(model, data)
+            return "unreachable"
+        standoff, target_r, direction = plan.standoff, plan.target_r, plan.direction
+        # 3. Velocity phase, then the hold from first contact.
+        hold, deadline, velocity = plan.hold, plan.deadline, plan.velocity
+        lib = compiled.library() if self.use_compiled and on_step is None else None
+        if lib is not None:
+            failure = self._deliver_compiled(
+                lib, model, data, h, standoff, target_r, velocity, direction, hold, deadline
+            )
+            self.executed_speed = max(self.trace.tip_speed, default=0.0)
+            self.park(model, data)
+            return failure
+        failure = None
+        step = 0
+        while True:
+            # Along the push: velocity control only (the paper's "hold the target velocity");
+            # across it: the PD rule keeps the tip on the line through the contact point.
+            tip_velocity, touching, arm_touch = self._control(
+                model, data, h, standoff, target_r, velocity, free_axis=direction
+            )
+            self.trace.tip_speed.append(float(tip_velocity[:3] @ direction))
+            if arm_touch:
+                failure = "arm_contact"
+                break
+            if touching and self.trace.contact_step is None:
+                self.trace.contact_step = step
+            step += 1
+            if self.trace.contact_step is not None and step >= self.trace.contact_step + hold:
+                break
+            if self.trace.contact_step is None and step >= deadline:
+                failure = "unreachable"
+                break
+        self.executed_speed = max(self.trace.tip_speed, default=0.0)
+        # 4. Retract towards the standoff point, no target velocity.
+        if failure is None:
+            for _ in range(self.retract_steps(model)):
+                _, _, arm_touch = self._control(model, data, h, standoff, target_r, np.zeros(6))
+                if arm_touch:
+                    failure = "arm_contact"
+                    break
+        # 5. Out of the way.
+        self.park(model, data)
+        return failure
+
+    @staticmethod
+    def retract_steps(model: mujoco.MjModel) -> int:
+        """Controlled steps of the retraction (step 4)."""
+        return round(RETRACT_TIME / model.opt.timestep)
+
+    def plan(
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        h: _Handles,
+        push: PushGeometry,
+        physics: PhysicsConfig,
+    ) -> PushPlan | None:
+        """Steps 1 and 2 of `deliver`: the base placed and the arm set, at rest, at the
+        standoff (the state's mocap pose and arm joints written, nothing else), and the
+        velocity phase's target; None where the arm cannot reach the push. A function of
+        the push alone: the chain's state is not read (`masspush.sim.batch` plans every
+        chain's push in one scratch `MjData`)."""
         direction = np.array([push.direction[0], push.direction[1], 0.0])
         target_r = tool_rotation(direction, self.arm.tool_pitch)
         contact = np.array([push.contact[0], push.contact[1], physics.link_height / 2])
@@ -309,57 +396,20 @@ class ArmPusher:
         self.trace.ik_error = error
         self.trace.commanded_speed = speed
         if error > IK_TOLERANCE:
-            self.park(model, data)
-            return "unreachable"
+            return None
         data.qpos[h.qadr] = q
         data.qvel[h.dadr] = 0.0
-
-        # 3. Velocity phase, then the hold from first contact.
-        dt = model.opt.timestep
-        hold = physics.push_steps[1]
         # A torque-limited arm may be slower than commanded: allow it twice the time.
         to_face = run_up + physics.pusher_clearance
-        deadline = math.ceil((2 * to_face / speed + 0.05) / dt)
-        velocity = np.concatenate([direction * speed, np.zeros(3)])
-        lib = compiled.library() if self.use_compiled and on_step is None else None
-        if lib is not None:
-            failure = self._deliver_compiled(
-                lib, model, data, h, standoff, target_r, velocity, direction, hold, deadline
-            )
-            self.executed_speed = max(self.trace.tip_speed, default=0.0)
-            self.park(model, data)
-            return failure
-        failure = None
-        step = 0
-        while True:
-            # Along the push: velocity control only (the paper's "hold the target velocity");
-            # across it: the PD rule keeps the tip on the line through the contact point.
-            tip_velocity, touching, arm_touch = self._control(
-                model, data, h, standoff, target_r, velocity, free_axis=direction
-            )
-            self.trace.tip_speed.append(float(tip_velocity[:3] @ direction))
-            if arm_touch:
-                failure = "arm_contact"
-                break
-            if touching and self.trace.contact_step is None:
-                self.trace.contact_step = step
-            step += 1
-            if self.trace.contact_step is not None and step >= self.trace.contact_step + hold:
-                break
-            if self.trace.contact_step is None and step >= deadline:
-                failure = "unreachable"
-                break
-        self.executed_speed = max(self.trace.tip_speed, default=0.0)
-        # 4. Retract towards the standoff point, no target velocity.
-        if failure is None:
-            for _ in range(round(RETRACT_TIME / dt)):
-                _, _, arm_touch = self._control(model, data, h, standoff, target_r, np.zeros(6))
-                if arm_touch:
-                    failure = "arm_contact"
-                    break
-        # 5. Out of the way.
-        self.park(model, data)
-        return failure
+        dt = model.opt.timestep
+        return PushPlan(
+            standoff=standoff,
+            target_r=target_r,
+            velocity=np.concatenate([direction * speed, np.zeros(3)]),
+            direction=direction,
+            hold=physics.push_steps[1],
+            deadline=math.ceil((2 * to_face / speed + 0.05) / dt),
+        )
 
     def _speed_within_joint_limits(
         self, model, data, h: _Handles, q: np.ndarray, direction: np.ndarray, speed: float

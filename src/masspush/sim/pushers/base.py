@@ -60,7 +60,8 @@ class PusherKind:
     make: Callable[[], Pusher]
     """A new pusher of this kind."""
     batch: bool
-    """Runs on the batch path (`masspush.sim.batch.ChainBatch`): many chains in lockstep."""
+    """Runs on the batch path (`masspush.sim.batch.ChainBatch`): many chains in lockstep
+    (an arm there needs its compiled law: `masspush.sim.pushers.on_batch_path`)."""
     arm: bool
     """A robot arm under operational-space control (its scene holds the arm; the mass scale
     matters, as on a real robot). The stiff pusher is not one: a chain's mass barely slows it."""

@@ -22,6 +22,7 @@ import tempfile
 import warnings
 from functools import cache
 from pathlib import Path
+from typing import ClassVar
 
 import mujoco
 import numpy as np
@@ -38,6 +39,22 @@ PURE_PYTHON = "MASSPUSH_PURE_PYTHON"
 # -ffp-contract=off: no fused multiply-adds, whose single rounding would make the
 # compiled law differ from NumPy's in the last bits.
 CFLAGS = ["-O2", "-fPIC", "-shared", "-ffp-contract=off", "-std=c99"]
+
+
+class Userdata:
+    """Where the lockstep control callback (osc_law.c, `masspush_control`) keeps a
+    simulation's push in `mjData.userdata`; the C file's U_ enum, checked at load."""
+
+    PHASE, STEP, CONTACT, HOLD, DEADLINE, RETRACT, SPEED = range(7)
+    X, R, V, AXIS, USE_AXIS = 7, 10, 19, 25, 28
+    SIZE = 29
+    # phases
+    OFF, VELOCITY, RETRACTING, DONE, ARM_CONTACT, UNREACHABLE = range(6)
+    FAILURES: ClassVar[dict[int, str | None]] = {
+        DONE: None,
+        ARM_CONTACT: "arm_contact",
+        UNREACHABLE: "unreachable",
+    }
 
 
 class Arm(ctypes.Structure):
@@ -146,7 +163,21 @@ def library() -> ctypes.CDLL | None:
         pointer, pointer, ctypes.POINTER(Arm), ctypes.POINTER(Target), ctypes.c_int,
         ctypes.POINTER(ctypes.c_double),
     ]  # fmt: skip
+    lib.masspush_set_arm.argtypes = [ctypes.POINTER(Arm)]
+    lib.masspush_set_arm.restype = None
+    if lib.masspush_userdata_size() != Userdata.SIZE:
+        return None  # a library out of step with this file: the Python law is always right
     return lib
+
+
+def install_lockstep(lib: ctypes.CDLL, arm: Arm) -> None:
+    """Make `lib`'s control callback MuJoCo's (`mjcb_control`, global to the process) for
+    the arm `arm`. The callback acts only on simulations whose userdata holds a push, so
+    every other scene steps as before; it is set again before each lockstep push, since
+    another arm may have been set in between."""
+    lib.masspush_set_arm(ctypes.byref(arm))
+    if mujoco.get_mjcb_control() is not lib.masspush_control:
+        mujoco.set_mjcb_control(lib.masspush_control)
 
 
 def target(x_des, r_des, v_des, free_axis=None) -> Target:

@@ -84,13 +84,12 @@ static void rotation_error(const double* r_des, const double* r, double* out) {
   out[2] = vz * scale;
 }
 
-// One controlled step: mj_step1, the law, the limits, the contact check, mj_step2.
-// Returns the tip's speed along `along` (if given) and sets the contact flags.
-static void control_step(const mjModel* m, mjData* d, const Arm* arm, const Target* t,
-                         double* tip_velocity, int* touching, int* arm_touch,
-                         double* max_ratio) {
+// The law, the limits and the contact check, between mj_step1 and mj_step2 (or in MuJoCo's
+// control callback, the same point of mj_step): sets ctrl, the tip's velocity and the
+// contact flags.
+static void control_law(const mjModel* m, mjData* d, const Arm* arm, const Target* t,
+                        double* tip_velocity, int* touching, int* arm_touch) {
   int nv = m->nv, o = arm->dof0;
-  mj_step1(m, d);
   double* jac_full = arm->jac;
   mj_jacSite(m, d, jac_full, jac_full + 3 * nv, arm->site);
   double jac[NDOF][NDOF];
@@ -155,6 +154,15 @@ static void control_step(const mjModel* m, mjData* d, const Arm* arm, const Targ
     if (g0 == arm->ee || g1 == arm->ee) *touching = 1;
     if (arm->is_arm[g0] || arm->is_arm[g1]) *arm_touch = 1;
   }
+}
+
+// One controlled step: mj_step1, the law, mj_step2, and the largest torque ratio.
+static void control_step(const mjModel* m, mjData* d, const Arm* arm, const Target* t,
+                         double* tip_velocity, int* touching, int* arm_touch,
+                         double* max_ratio) {
+  int o = arm->dof0;
+  mj_step1(m, d);
+  control_law(m, d, arm, t, tip_velocity, touching, arm_touch);
   mj_step2(m, d);
   double ratio = 0.0;
   for (int k = 0; k < NDOF; k++) {
@@ -203,6 +211,78 @@ int masspush_retract(const mjModel* m, mjData* d, const Arm* arm, const Target* 
     if (arm_touch) return 1;
   }
   return 0;
+}
+
+// Lockstep: many chains, each with its arm, stepped together by MuJoCo's batch
+// (masspush.sim.batch.ChainBatch). The velocity phase, the hold and the retraction above
+// run as MuJoCo's control callback, one step per mj_step, each simulation's push and phase
+// in its mjData.userdata (layout: masspush.sim.pushers.compiled.Userdata), so that every
+// thread of the batch runs the law in C. The arm's ids and gains are the same in every
+// chain's model (one scene layout), set once by masspush_set_arm.
+enum {
+  U_PHASE, U_STEP, U_CONTACT, U_HOLD, U_DEADLINE, U_RETRACT, U_SPEED,
+  U_X, U_R = U_X + 3, U_V = U_R + 9, U_AXIS = U_V + 6, U_USE_AXIS = U_AXIS + 3, U_SIZE
+};
+enum { PH_OFF, PH_VELOCITY, PH_RETRACT, PH_DONE, PH_ARM_CONTACT, PH_UNREACHABLE };
+
+static Arm lockstep_arm;
+static int lockstep_ready = 0;
+
+void masspush_set_arm(const Arm* arm) {
+  lockstep_arm = *arm;
+  lockstep_ready = 1;
+}
+
+int masspush_userdata_size(void) { return U_SIZE; }
+
+// The control callback (mjcb_control): a no-op for a scene without the userdata or a
+// simulation whose phase is off, so that it may stay installed for the whole process.
+void masspush_control(const mjModel* m, mjData* d) {
+  if (!lockstep_ready || m->nuserdata < U_SIZE) return;
+  double* u = d->userdata;
+  int phase = (int)u[U_PHASE];
+  if (phase != PH_VELOCITY && phase != PH_RETRACT) return;
+  Target t;
+  memcpy(t.x_des, u + U_X, sizeof(t.x_des));
+  memcpy(t.r_des, u + U_R, sizeof(t.r_des));
+  memcpy(t.v_des, u + U_V, sizeof(t.v_des));
+  memcpy(t.free_axis, u + U_AXIS, sizeof(t.free_axis));
+  t.use_free_axis = (int)u[U_USE_AXIS];
+  Arm arm = lockstep_arm;
+  mj_markStack(d);
+  arm.jac = mj_stackAllocNum(d, NDOF * m->nv);  // scratch of this simulation's thread
+  arm.minv_jt = mj_stackAllocNum(d, NDOF * m->nv);
+  double v[NDOF];
+  int touching, arm_touch;
+  control_law(m, d, &arm, &t, v, &touching, &arm_touch);
+  mj_freeStack(d);
+  if (phase == PH_RETRACT) {  // masspush_retract
+    if (arm_touch) {
+      u[U_PHASE] = PH_ARM_CONTACT;
+    } else if (--u[U_RETRACT] <= 0) {
+      u[U_PHASE] = PH_DONE;
+    }
+    return;
+  }
+  // masspush_velocity_phase, one pass of its loop
+  double speed = v[0] * t.free_axis[0] + v[1] * t.free_axis[1] + v[2] * t.free_axis[2];
+  if (speed > u[U_SPEED]) u[U_SPEED] = speed;
+  if (arm_touch) {
+    u[U_PHASE] = PH_ARM_CONTACT;
+    return;
+  }
+  int step = (int)u[U_STEP], contact = (int)u[U_CONTACT];
+  if (touching && contact < 0) u[U_CONTACT] = contact = step;
+  u[U_STEP] = ++step;
+  if (contact >= 0 && step >= contact + (int)u[U_HOLD]) {
+    // The retraction's target: back towards the standoff, at rest, on every axis.
+    for (int j = 0; j < NDOF; j++) u[U_V + j] = 0.0;
+    for (int j = 0; j < 3; j++) u[U_AXIS + j] = 0.0;
+    u[U_USE_AXIS] = 0.0;
+    u[U_PHASE] = u[U_RETRACT] > 0 ? PH_RETRACT : PH_DONE;
+  } else if (contact < 0 && step >= (int)u[U_DEADLINE]) {
+    u[U_PHASE] = PH_UNREACHABLE;
+  }
 }
 
 // The ABI this file was built for, checked by the loader against the running MuJoCo.
