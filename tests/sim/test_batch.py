@@ -98,3 +98,25 @@ def test_a_stationary_arm_in_lockstep_loses_chains_as_one_at_a_time():
     actions = rng.uniform(-1, 1, size=(4, len(chains), 2))
     failures = _same_as_one_at_a_time("ur10-stationary", physics, chains, actions)
     assert "left_workspace" in failures and failures.count(None) >= 48
+
+
+@needs_compiled_law
+def test_the_lockstep_gives_back_the_control_callback_it_found():
+    import ctypes
+
+    import mujoco
+
+    physics = PhysicsConfig(n_links=2)
+    batch = ChainBatch([sample_chain(physics, np.random.default_rng(0))], physics, pusher="kuka")
+    assert batch.push(np.array([[0.3, 0.5]]))[0].failure is None
+    assert mujoco.get_mjcb_control() is None  # none before, none after
+    # A caller's own C callback is back once the arms are done.
+    theirs = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_void_p)(lambda m, d: None)
+    law = compiled.library()
+    mujoco.set_mjcb_control(theirs)
+    try:
+        with compiled.lockstep_law(law, make_pusher("kuka")._compiled_arm(batch._arms.arm)):
+            assert mujoco.get_mjcb_control() is law.masspush_control
+        assert mujoco.get_mjcb_control() is theirs
+    finally:
+        mujoco.set_mjcb_control(None)

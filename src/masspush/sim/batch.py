@@ -280,7 +280,6 @@ class ArmLockstep:
         """`ArmPusher.deliver` for each simulation i of `geometries` (the chains at rest):
         the failures (None: the arm is parked, the chain may slide on), the controlled
         steps and the executed speeds, (nsim,) each."""
-        u, phase = self._userdata, compiled_law.Userdata
         failures: dict[int, str | None] = {}
         acting = []
         for i, geometry in geometries.items():
@@ -297,8 +296,16 @@ class ArmLockstep:
         push_steps = np.zeros(self.batch.nsim, dtype=int)
         speeds = np.zeros(self.batch.nsim)
         if acting:
-            compiled_law.install_lockstep(self.law, self.pusher._compiled_arm(self.arm))
-        acting_ids = np.array(acting, dtype=int)
+            with compiled_law.lockstep_law(self.law, self.pusher._compiled_arm(self.arm)):
+                self._act(np.array(acting, dtype=int), failures, push_steps, speeds)
+        return failures, push_steps, speeds
+
+    def _act(
+        self, acting_ids: np.ndarray, failures: dict, push_steps: np.ndarray, speeds: np.ndarray
+    ) -> None:
+        """Step the acting simulations one step at a time until every arm is done; park each
+        as it finishes, recording its failure, steps and executed speed."""
+        u, phase = self._userdata, compiled_law.Userdata
         while acting_ids.size:
             # The simulations whose arm is done wait: they settle later, all together.
             nan = step_batch(self.batch, acting_ids, 1)
@@ -313,7 +320,6 @@ class ArmLockstep:
                 u[i, phase.PHASE] = phase.OFF
                 self.park(i)
             acting_ids = acting_ids[~np.isin(acting_ids, done)]
-        return failures, push_steps, speeds
 
     def _set_push(self, i: int, plan: PushPlan) -> None:
         """Simulation i's arm where the plan put it (in the scratch data), its push in

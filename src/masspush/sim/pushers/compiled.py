@@ -20,6 +20,8 @@ import subprocess
 import sys
 import tempfile
 import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from functools import cache
 from pathlib import Path
 from typing import ClassVar
@@ -170,14 +172,19 @@ def library() -> ctypes.CDLL | None:
     return lib
 
 
-def install_lockstep(lib: ctypes.CDLL, arm: Arm) -> None:
-    """Make `lib`'s control callback MuJoCo's (`mjcb_control`, global to the process) for
-    the arm `arm`. The callback acts only on simulations whose userdata holds a push, so
-    every other scene steps as before; it is set again before each lockstep push, since
-    another arm may have been set in between."""
+@contextmanager
+def lockstep_law(lib: ctypes.CDLL, arm: Arm) -> Iterator[None]:
+    """While inside, `lib`'s control callback is MuJoCo's (`mjcb_control`, global to the
+    process) for the arm `arm`; the callback that was there before comes back after, so
+    that no other model stepped later in the process meets ours. Ours acts only on
+    simulations whose userdata holds a push: every other scene steps as before."""
     lib.masspush_set_arm(ctypes.byref(arm))
-    if mujoco.get_mjcb_control() is not lib.masspush_control:
-        mujoco.set_mjcb_control(lib.masspush_control)
+    before = mujoco.get_mjcb_control()
+    mujoco.set_mjcb_control(lib.masspush_control)
+    try:
+        yield
+    finally:
+        mujoco.set_mjcb_control(before)
 
 
 def target(x_des, r_des, v_des, free_axis=None) -> Target:
