@@ -28,21 +28,19 @@ from masspush.real import (
     fit_classifier,
     labelled,
     predictor_features,
+    stratified_folds,
 )
 
 
-def out_of_fold_log_probs(features, labels, n_classes, config, seed) -> np.ndarray:
-    """Each episode's class log-probabilities from a classifier that never saw it."""
-    rng = np.random.default_rng(seed)
-    fold = np.zeros(len(labels), int)
-    for c in range(n_classes):
-        members = rng.permutation(np.flatnonzero(labels == c))
-        fold[members] = np.arange(len(members)) % config.folds
+def out_of_fold_log_probs(features, labels, n_classes, config) -> np.ndarray:
+    """Each episode's class log-probabilities from a classifier that never saw it (the
+    protocol's folds, `stratified_folds`)."""
     out = np.zeros((len(labels), n_classes))
-    for f in range(config.folds):
-        test = fold == f
-        model = fit_classifier(features[~test], labels[~test], n_classes, config)
-        out[test] = episode_log_probs(model, features[test], np.arange(test.sum()), test.sum())
+    for test in stratified_folds(labels, config.folds, config.seed):
+        train = np.ones(len(labels), bool)
+        train[test] = False
+        model = fit_classifier(features[train], labels[train], n_classes, config)
+        out[test] = episode_log_probs(model, features[test], np.arange(len(test)), len(test))
     return out
 
 
@@ -69,7 +67,7 @@ def main(argv: list[str] | None = None) -> int:
     for kind in ("estimate", "lstm"):
         config = ClassifierConfig(features=kind)
         features = predictor_features(predictor, episodes, kind)
-        log_probs = out_of_fold_log_probs(features, labels, len(classes), config, args.seed)
+        log_probs = out_of_fold_log_probs(features, labels, len(classes), config)
         cells = []
         for runs in (1, 2, 4, 8):
             hits = [

@@ -18,7 +18,7 @@ EXPORTS = {
     "session": ("SessionConfig", "run_session"),
     "finetune": ("PAPER_CLASSES", "ClassifierConfig", "classifier_inputs", "cross_validate",
                  "episode_log_probs", "fit_classifier", "labelled", "predictor_features",
-                 "start_pose_control", "start_pose_features"),
+                 "start_pose_control", "start_pose_features", "stratified_folds"),
     "classify": ("ClassifyJob", "FinetuneJob", "classify", "finetune"),
     "target_world": ("TRAINING_KNOBS", "Lab", "TargetWorld", "TargetWorldRobot", "WorldRanges",
                      "scaled_world"),

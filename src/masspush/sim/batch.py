@@ -141,17 +141,8 @@ class ChainBatch:
         """`push` for an arm: each push planned, then the arms and chains in lockstep.
         Step for step what `ChainSim.push` does with `ArmPusher.deliver` (compiled)."""
         assert self._arms is not None
-        actions = np.asarray(actions, dtype=float)
-        if actions.shape != (self.nsim, 2):
-            raise ValueError(f"actions must have shape ({self.nsim}, 2), got {actions.shape}")
-        ids = np.flatnonzero(~self.failed)
+        ids, specs, geometries = self._pushes(actions)
         saved = self.batch.state[ids].copy()
-        configs = self.configs()
-        specs, geometries = {}, {}
-        for i in ids:
-            chain = self.chains[i]
-            specs[i] = action_to_push(actions[i], chain.lengths, self.physics)
-            geometries[i] = push_geometry(specs[i], configs[i], chain.lengths, self.physics)
         failures, push_steps, speeds = self._arms.deliver(geometries)
         settling = np.array(sorted(i for i in ids if failures[i] is None), dtype=int)
         settle_steps = np.zeros(self.nsim, dtype=int)
@@ -173,25 +164,33 @@ class ChainBatch:
     def prepare_push(self, actions: np.ndarray) -> tuple[np.ndarray, list[PushSpec], np.ndarray]:
         """Place the pusher for each live chain's push: (chain ids, pushes, (ids, steps, nu)
         velocity commands). The first phase of `push`, public for benchmarks."""
+        ids, specs, geometries = self._pushes(actions)
+        profile = self.pusher.speed_profile(self.physics)
+        controls = np.zeros((ids.size, profile.size, self._ctrl.shape[1]))
+        for row, i in enumerate(ids):
+            self._qpos[i, self._pusher_q : self._pusher_q + 2] = self.pusher.start_qpos(
+                geometries[i], self.physics
+            )
+            self._qvel[i, self._pusher_v : self._pusher_v + 2] = 0.0
+            controls[row, :, :2] = self.pusher.controls(geometries[i], self.physics)
+        return ids, [specs[i] for i in ids], controls
+
+    def _pushes(
+        self, actions: np.ndarray
+    ) -> tuple[np.ndarray, dict[int, PushSpec], dict[int, PushGeometry]]:
+        """The live chains and, by chain, the push each action stands for and where it
+        meets the chain as it lies now."""
         actions = np.asarray(actions, dtype=float)
         if actions.shape != (self.nsim, 2):
             raise ValueError(f"actions must have shape ({self.nsim}, 2), got {actions.shape}")
         ids = np.flatnonzero(~self.failed)
         configs = self.configs()
-        profile = self.pusher.speed_profile(self.physics)
-        controls = np.zeros((ids.size, profile.size, self._ctrl.shape[1]))
-        specs = []
-        for row, i in enumerate(ids):
-            chain = self.chains[i]
-            spec = action_to_push(actions[i], chain.lengths, self.physics)
-            geometry = push_geometry(spec, configs[i], chain.lengths, self.physics)
-            specs.append(spec)
-            self._qpos[i, self._pusher_q : self._pusher_q + 2] = self.pusher.start_qpos(
-                geometry, self.physics
-            )
-            self._qvel[i, self._pusher_v : self._pusher_v + 2] = 0.0
-            controls[row, :, :2] = self.pusher.controls(geometry, self.physics)
-        return ids, specs, controls
+        specs, geometries = {}, {}
+        for i in ids:
+            lengths = self.chains[i].lengths
+            specs[i] = action_to_push(actions[i], lengths, self.physics)
+            geometries[i] = push_geometry(specs[i], configs[i], lengths, self.physics)
+        return ids, specs, geometries
 
     def deliver(self, ids: np.ndarray, controls: np.ndarray) -> None:
         """Run the pushes' open-loop commands in one rollout, then retract the pusher."""
