@@ -24,6 +24,7 @@ from masspush.learn import load_model
 from masspush.models import resolve_model
 from masspush.real import (
     ClassifierConfig,
+    check_recording_fits,
     episode_log_probs,
     fit_classifier,
     labelled,
@@ -51,6 +52,11 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("model", help="the predictor it was recorded with (tp+, rp or a file)")
     parser.add_argument("--setting", default="real-ur10")
+    parser.add_argument(
+        "--allow-mismatch",
+        action="store_true",
+        help="read a recording of another setting (same links)",
+    )
     parser.add_argument("--draws", type=int, default=200, help="random groups per class and R")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
@@ -58,7 +64,10 @@ def main(argv: list[str] | None = None) -> int:
         sys.exit("error: --draws must be at least 1")
     try:
         recording = read_recording(args.recording)
-        predictor, _ = load_model(resolve_model(args.model, args.setting), args.setting)
+        predictor, meta = load_model(resolve_model(args.model, args.setting), args.setting)
+        check_recording_fits(
+            recording, args.recording, args.setting, predictor.n_links, args.allow_mismatch, meta
+        )
         labels, classes = labelled(recording)
     except (OSError, ValueError) as err:
         sys.exit(f"error: {' '.join(str(err).split())}")

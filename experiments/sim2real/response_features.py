@@ -21,7 +21,13 @@ import numpy as np
 from masspush.data import read_recording
 from masspush.learn import load_model
 from masspush.models import resolve_model
-from masspush.real import ClassifierConfig, cross_validate, labelled, predictor_features
+from masspush.real import (
+    ClassifierConfig,
+    check_recording_fits,
+    cross_validate,
+    labelled,
+    predictor_features,
+)
 
 PUSHES = 2
 """Pushes read per episode (the paper's protocol)."""
@@ -53,10 +59,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("recording", help="a sim2real arm's recording (learned.jsonl)")
     parser.add_argument("model", help="the predictor it was recorded with (tp+, rp or a file)")
     parser.add_argument("--setting", default="real-ur10")
+    parser.add_argument(
+        "--allow-mismatch",
+        action="store_true",
+        help="read a recording of another setting (same links)",
+    )
     args = parser.parse_args(argv)
     try:
         recording = read_recording(args.recording)
-        predictor, _ = load_model(resolve_model(args.model, args.setting), args.setting)
+        predictor, meta = load_model(resolve_model(args.model, args.setting), args.setting)
+        check_recording_fits(
+            recording, args.recording, args.setting, predictor.n_links, args.allow_mismatch, meta
+        )
         labels, classes = labelled(recording)
     except (OSError, ValueError) as err:
         sys.exit(f"error: {' '.join(str(err).split())}")

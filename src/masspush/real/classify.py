@@ -61,7 +61,7 @@ def finetune(job: FinetuneJob, config: ClassifierConfig) -> list[str]:
         path, setting.name, allow_mismatch=job.allow_mismatch, n_links=setting.n_links
     )
     recording = read_recording(job.episodes)
-    _check_recording_fits(
+    check_recording_fits(
         recording, job.episodes, setting.name, setting.n_links, job.allow_mismatch, meta
     )
     episodes = recording.to_episodes()
@@ -109,7 +109,7 @@ def episode_counts(recording: Recording, classes: list[str]) -> list[str]:
     return lines
 
 
-def _check_recording_fits(
+def check_recording_fits(
     recording: Recording, where: str, setting: str, n_links: int, allow_mismatch: bool,
     predictor_meta: dict | None = None,
 ) -> None:  # fmt: skip
@@ -152,7 +152,7 @@ def classify(job: ClassifyJob) -> list[str]:
     # Piece by piece: a recording of any size is classified in the memory of one piece.
     for i, piece in enumerate(iter_recording(job.episodes)):
         if i == 0:
-            _check_recording_fits(
+            check_recording_fits(
                 piece, job.episodes, meta["setting"], predictor.n_links, job.allow_mismatch,
                 meta.get("predictor_meta"),
             )  # fmt: skip
