@@ -120,3 +120,23 @@ def test_the_lockstep_gives_back_the_control_callback_it_found():
         assert mujoco.get_mjcb_control() is theirs
     finally:
         mujoco.set_mjcb_control(None)
+
+
+@needs_compiled_law
+def test_arms_step_together_many_steps_a_call(monkeypatch):
+    # Each batch call steps as far as no arm can end its push: far fewer calls than steps.
+    physics = PhysicsConfig(n_links=2)
+    rng = np.random.default_rng(5)
+    batch = ChainBatch([sample_chain(physics, rng) for _ in range(3)], physics, pusher="kuka")
+    calls = []
+    step = batch.batch.step
+    monkeypatch.setattr(
+        batch.batch, "step", lambda ids, nstep: calls.append(nstep) or step(ids, nstep)
+    )
+    arms = batch._arms
+    monkeypatch.setattr(arms, "park", lambda i, park=arms.park: calls.append("park") or park(i))
+    outcomes = batch.push(np.array([(0.5, 0.5), (-0.3, 0.7), (0.2, -0.6)]))
+    controlled = calls[: len(calls) - calls[::-1].index("park")]
+    steps = sum(n for n in controlled if n != "park")
+    assert steps == max(o.steps - round(o.settle_time / physics.timestep) for o in outcomes)
+    assert len(controlled) - 3 < steps / 5

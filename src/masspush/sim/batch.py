@@ -302,23 +302,69 @@ class ArmLockstep:
     def _act(
         self, acting_ids: np.ndarray, failures: dict, push_steps: np.ndarray, speeds: np.ndarray
     ) -> None:
-        """Step the acting simulations one step at a time until every arm is done; park each
-        as it finishes, recording its failure, steps and executed speed."""
-        u, phase = self._userdata, compiled_law.Userdata
+        """Step the acting simulations until every arm is done; park each as it finishes,
+        recording its failure, steps and executed speed.
+
+        Each call steps as many steps as no arm can finish in (`_steps_to_finish`), so that
+        every arm is parked at the step it finished, as one step at a time would; an arm
+        that touched the chain (`arm_contact`) or a simulation that failed inside such a
+        call is the exception no bound foresees: the call is undone and stepped again one
+        step at a time."""
         while acting_ids.size:
-            # The simulations whose arm is done wait: they settle later, all together.
-            nan = step_batch(self.batch, acting_ids, 1)
-            push_steps[acting_ids] += 1
-            for i in nan:
-                failures[i] = "nan"
-            done = [i for i in acting_ids if u[i, phase.PHASE] >= phase.DONE or i in nan]
-            for i in done:
-                speeds[i] = u[i, phase.SPEED]
-                if i not in failures:
-                    failures[i] = phase.FAILURES[int(u[i, phase.PHASE])]
-                u[i, phase.PHASE] = phase.OFF
-                self.park(i)
-            acting_ids = acting_ids[~np.isin(acting_ids, done)]
+            n = self._steps_to_finish(acting_ids)
+            if n > 1:
+                saved = self.batch.state[acting_ids].copy()
+                nan = step_batch(self.batch, acting_ids, n)
+                if not nan and not self._ended_early(acting_ids):
+                    push_steps[acting_ids] += n
+                    acting_ids = self._finish(acting_ids, [], failures, speeds)
+                    continue
+                self.batch.state[acting_ids] = saved
+            for _ in range(n):
+                nan = step_batch(self.batch, acting_ids, 1)
+                push_steps[acting_ids] += 1
+                acting_ids = self._finish(acting_ids, nan, failures, speeds)
+                if not acting_ids.size:
+                    break
+
+    def _finish(
+        self, acting_ids: np.ndarray, nan: list[int], failures: dict, speeds: np.ndarray
+    ) -> np.ndarray:
+        """Park the simulations whose arm is done (or whose simulation failed), recording
+        their failure and executed speed; the ones still acting."""
+        u, phase = self._userdata, compiled_law.Userdata
+        for i in nan:
+            failures[i] = "nan"
+        done = [i for i in acting_ids if u[i, phase.PHASE] >= phase.DONE or i in nan]
+        for i in done:
+            speeds[i] = u[i, phase.SPEED]
+            if i not in failures:
+                failures[i] = phase.FAILURES[int(u[i, phase.PHASE])]
+            u[i, phase.PHASE] = phase.OFF
+            self.park(i)
+        return acting_ids[~np.isin(acting_ids, done)]
+
+    def _steps_to_finish(self, acting_ids: np.ndarray) -> int:
+        """The fewest steps in which one of the acting arms may end its push, read off the
+        phases `masspush_control` keeps: a contact may come at the next step, the hold then
+        lasts its steps and the retraction its own; without contact the deadline ends it."""
+        u, phase = self._userdata[acting_ids], compiled_law.Userdata
+        step, contact = u[:, phase.STEP], u[:, phase.CONTACT]
+        retract = np.maximum(u[:, phase.RETRACT], 0.0)
+        hold_end = np.where(contact >= 0, contact + u[:, phase.HOLD], step + u[:, phase.HOLD])
+        velocity = np.maximum(hold_end - step, 1.0) + retract
+        velocity = np.where(
+            contact >= 0,
+            velocity,
+            np.minimum(velocity, np.maximum(u[:, phase.DEADLINE] - step, 1.0)),
+        )
+        steps = np.where(u[:, phase.PHASE] == phase.RETRACTING, np.maximum(retract, 1.0), velocity)
+        return int(steps.min())
+
+    def _ended_early(self, acting_ids: np.ndarray) -> bool:
+        """Whether an arm ended its push in a way `_steps_to_finish` cannot foresee."""
+        u, phase = self._userdata, compiled_law.Userdata
+        return bool(np.any(u[acting_ids, phase.PHASE] == phase.ARM_CONTACT))
 
     def _set_push(self, i: int, plan: PushPlan) -> None:
         """Simulation i's arm where the plan put it (in the scratch data), its push in
