@@ -8,7 +8,7 @@ import pytest
 from masspush.config import PhysicsConfig
 from masspush.sim.chain import link_poses, sample_chain
 from masspush.sim.pushers import compiled, make_pusher
-from masspush.sim.pushers.arm import ARM_PARK, ARMS, ASSETS, ArmPusher, tool_rotation
+from masspush.sim.pushers.arm import ARM_PARK, ARMS, ASSETS, ArmPusher, _cross, tool_rotation
 from masspush.sim.pushers.osc import desired_acceleration, osc_torque, rotation_error
 from masspush.sim.simulate import ChainSim
 
@@ -342,3 +342,13 @@ def test_an_arm_episode_does_not_depend_on_the_episodes_before_it():
     after = run_env(config, RandomPolicy(), np.array([150, 151, 152, 176]), TRAIN, 0)
     alone = run_env(config, RandomPolicy(), np.array([176]), TRAIN, 0)
     np.testing.assert_array_equal(after.configs[-1], alone.configs[0])
+
+
+def test_tool_rotation_is_a_rotation_with_numpys_own_bits():
+    # The planner's cross product is NumPy's, bit for bit (rest poses must not move).
+    rng = np.random.default_rng(4)
+    for a, b in rng.normal(size=(200, 2, 3)):
+        np.testing.assert_array_equal(_cross(a, b), np.cross(a, b))
+    r = tool_rotation(np.array([0.6, 0.8, 0.0]), 0.3)
+    np.testing.assert_allclose(r.T @ r, np.eye(3), atol=1e-12)
+    assert np.linalg.det(r) == pytest.approx(1.0)
