@@ -80,11 +80,16 @@ def main() -> None:
     )
     args = parser.parse_args()
 
+    if args.episodes < 1 or args.frictions < 1:
+        parser.error("--episodes and --frictions must be at least 1")
     path = Path(args.recording)
     if not path.is_file():
         parser.error(f"recording: no such file {path}")
-    recording = read_recording(path)
-    setting = get_setting(recording.setting)
+    try:
+        recording = read_recording(path)
+        setting = get_setting(recording.setting)
+    except (KeyError, ValueError) as err:  # a RecordingError is a ValueError
+        parser.error(f"recording {path}: {err}")
     counts: dict[str, int] = {}
     kept = []
     for episode in recording.episodes:
