@@ -5,8 +5,9 @@ share one layout, as `mujoco.batch.Batch.set_models` requires). The stiff pusher
 runs its open-loop velocity commands as one `rollout`. An arm's push is planned (inverse
 kinematics) chain by chain in Python, then every chain's arm runs its operational-space
 law in lockstep: the compiled law as MuJoCo's control callback (`osc_law.c`,
-`masspush_control`), each chain's push and phase in its `mjData.userdata`, one batch step
-at a time while any arm acts. Then all still-moving chains are stepped, dropping each as it
+`masspush_control`), each chain's push and phase in its `mjData.userdata`, each batch call
+as many steps as no arm can end its push in, so that every arm is parked at the step it
+finished. Then all still-moving chains are stepped, dropping each as it
 comes to rest. The rest and failure checks are the same code at the same steps as the
 one-at-a-time `ChainSim`, so the two paths give the same rest poses (tested, arms
 included).
@@ -256,8 +257,8 @@ def _compiled_law(pusher: str) -> ctypes.CDLL:
 
 class ArmLockstep:
     """An arm's pushes for many simulations of one batch at once: each push planned in
-    Python, then every arm's compiled law as MuJoCo's control callback, one batch step at
-    a time while any arm acts (`osc_law.c`, `masspush_control`). Every simulation's model
+    Python, then every arm's compiled law as MuJoCo's control callback, stepped together
+    while any arm acts (`osc_law.c`, `masspush_control`; `_act`). Every simulation's model
     has the layout of `model` (one scene, other masses, lengths or friction)."""
 
     def __init__(
