@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import warnings
 from dataclasses import replace
 from pathlib import Path
 
@@ -54,11 +53,7 @@ def class_log_posteriors(
                 continue
             filt.reset(np.array(episode["lengths"], float), episode=i)
             filt.masses, filt.friction = masses.copy(), friction.copy()
-            obs = np.array(episode["observations"], float)
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", bayes.UnexplainedObservationWarning)
-                for j, action in enumerate(episode["actions"][: len(obs) - 1]):
-                    filt.update(obs[j], np.array(action, float), obs[j + 1])
+            filt.replay(episode["observations"], episode["actions"])
             w = filt.weights.reshape(n, k).sum(axis=1)
             done[episode["id"]] = np.log(np.maximum(w, 1e-300)).tolist()
             cache.write_text(json.dumps(done))

@@ -20,7 +20,6 @@ from __future__ import annotations
 import argparse
 import json
 import time
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -45,12 +44,7 @@ def filter_shares(recording, setting, cache: Path) -> dict[str, list[float]]:
             # A stream per episode: a resumed run gives what an uninterrupted one does.
             filt.rng = np.random.default_rng([31, i])
             filt.reset(np.array(episode["lengths"], float))
-            obs = np.array(episode["observations"], float)
-            posterior = None
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", bayes.UnexplainedObservationWarning)
-                for k, action in enumerate(episode["actions"][: len(obs) - 1]):
-                    posterior = filt.update(obs[k], np.array(action, float), obs[k + 1])
+            posterior = filt.replay(episode["observations"], episode["actions"])
             done[episode["id"]] = posterior.median.tolist()
             cache.write_text(json.dumps(done))
     finally:

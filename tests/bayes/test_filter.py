@@ -346,3 +346,22 @@ def test_bayes_overrides_become_typed_filter_fields():
     with pytest.raises(ValueError, match="a number"):
         bayes_overrides(["particles=many"])
     assert bayes_overrides(["arm_model=surrogate"]) == {"arm_model": "surrogate"}
+
+
+def test_replaying_a_recorded_episode_is_its_updates_in_turn():
+    start = np.array([0.0, 0.0, 0.3, 0.2])
+    observations = start + np.array([[0, 0, 0, 0], [0.05, 0.02, 0.1, 0.0], [0.8, -0.8, 2.0, 1.0]])
+    actions = [(0.2, 0.5), (-0.3, 0.6), (0.4, 0.4)]  # the last one's outcome unseen
+    filters = [ParticleFilter(env_config(), SMALL, seed=0) for _ in range(2)]
+    for filt in filters:
+        filt.reset(np.array([0.12, 0.12]), episode=3)
+    with pytest.warns(UnexplainedObservationWarning):
+        by_hand = [filters[0].update(observations[k], np.array(actions[k]), observations[k + 1])
+                   for k in range(2)][-1]  # fmt: skip
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UnexplainedObservationWarning)
+        replayed = filters[1].replay(observations, actions)
+    np.testing.assert_array_equal(replayed.mean, by_hand.mean)
+    np.testing.assert_array_equal(filters[1].log_w, filters[0].log_w)
+    assert filters[1].warnings == filters[0].warnings >= 1
+    assert filters[1].replay(observations[:1], actions) is None

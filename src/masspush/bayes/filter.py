@@ -344,6 +344,19 @@ class ParticleFilter:
                             np.asarray(observed, float), sigma, power))  # fmt: skip
         return self._weigh(log_lik)
 
+    def replay(self, observations: np.ndarray, actions) -> Posterior | None:
+        """`update` with each push of a recorded episode in turn: `observations` its rest
+        poses (the first before any push), `actions` its pushes (those without an observed
+        outcome are left out). Observations no particle explains are tempered quietly
+        (counted in `warnings`). The posterior after the last push; None without one."""
+        obs = np.asarray(observations, float)
+        posterior = None
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UnexplainedObservationWarning)
+            for k, action in enumerate(list(actions)[: len(obs) - 1]):
+                posterior = self.update(obs[k], np.asarray(action, float), obs[k + 1])
+        return posterior
+
     def _weigh(self, log_lik: np.ndarray) -> Posterior:
         """Multiply the weights by a push's likelihood; the estimate; resample if degenerate."""
         self.past_log_lik = self.past_log_lik + log_lik
