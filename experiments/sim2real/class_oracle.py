@@ -98,6 +98,13 @@ def main() -> None:
     low, high = setting.physics().friction_range
     frictions = np.linspace(low, high, args.frictions + 2)[1:-1]
     cache = Path(args.cache) if args.cache else path.with_suffix(".oracle.json")
+    try:  # before any episode is weighed: a cache that cannot be written loses them all
+        if not cache.exists():
+            cache.write_text("{}")
+        with cache.open("a"):
+            pass
+    except OSError as err:
+        parser.error(f"cache: cannot write {cache} ({err.strerror})")
     posts = class_log_posteriors(recording, setting, args.pusher, classes, frictions, cache)
 
     guess = np.array([int(np.argmax(posts[e["id"]])) for e in kept])
