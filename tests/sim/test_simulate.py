@@ -7,6 +7,7 @@ import pytest
 
 from masspush.config import PhysicsConfig
 from masspush.sim.chain import link_poses, sample_chain
+from masspush.sim.pushers import make_pusher
 from masspush.sim.simulate import NAN, OK, UNSTABLE, ChainSim, classify
 
 G = 9.81
@@ -142,3 +143,36 @@ def test_classify_one_agrees_with_the_batch_classify():
         assert one == (int(codes[0]), bool(at_rest[0]))
         seen.add(one)
     assert len(seen) >= 4  # every outcome came up: moving, at rest, unstable, nan
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("arm", ["kuka", "ur10"])
+@pytest.mark.parametrize("n_links", [2, 3])
+def test_a_chain_an_arm_pushed_settles_alone_to_the_arm_scenes_rest_pose(arm, n_links):
+    physics = PhysicsConfig(n_links=n_links, mass_range=(0.1, 10.0))
+    rng = np.random.default_rng(20 + n_links)
+    pushes = settled_alone = 0
+    for _ in range(6):
+        chain = sample_chain(physics, rng)
+        reference = ChainSim(chain, physics, make_pusher(arm), settle_alone=False)
+        alone = ChainSim(chain, physics, make_pusher(arm))
+        watched = ChainSim(chain, physics, make_pusher(arm))
+        # A video watches the arm's scene, so the chain settles there (and the Python law
+        # pushes: within 1e-9 of the compiled one).
+        watched.on_step = lambda: None
+        steps_in_alone = []
+        alone_step = alone._alone[1]
+        for action in rng.uniform(-1, 1, size=(3, 2)):
+            time_before, watched_before = alone_step.time, watched._alone[1].time
+            outcome = reference.push(action)
+            assert alone.push(action) == outcome
+            np.testing.assert_array_equal(alone.config(), reference.config())
+            assert watched.push(action).failure == outcome.failure
+            np.testing.assert_allclose(watched.config(), reference.config(), rtol=0, atol=1e-9)
+            assert watched._alone[1].time == watched_before
+            pushes += 1
+            steps_in_alone.append(alone_step.time > time_before)
+            if outcome.failure is not None:
+                break
+        settled_alone += sum(steps_in_alone)
+    assert pushes >= 12 and settled_alone >= pushes // 2

@@ -142,7 +142,8 @@ def bench_arm(config: ArmBench = ArmBench()) -> dict:
         run = run_episodes(env_config, RandomPolicy(), np.arange(config.episodes), TRAIN,
                            config.seed, workers, threads=workers)  # fmt: skip
         rate[name] = int((run.failure != NOT_RUN).sum()) / (time.perf_counter() - start)
-    # The compiled law against the Python reference, and the steps a push takes.
+    # The compiled law settling alone against the reference (the Python law, the arm in
+    # every step of the settling), and the steps a push takes.
     rng = np.random.default_rng(config.seed)
     arms = {True: make_pusher(config.arm), False: make_pusher(config.arm)}
     arms[False].use_compiled = False
@@ -151,7 +152,7 @@ def bench_arm(config: ArmBench = ArmBench()) -> dict:
         chain, action = sample_chain(physics, rng), rng.uniform(-1, 1, 2)
         poses = []
         for use in (True, False):
-            sim = ChainSim(chain, physics, arms[use])
+            sim = ChainSim(chain, physics, arms[use], settle_alone=use)
             outcome = sim.push(action)
             poses.append(sim.config())
         worst = max(worst, float(np.abs(poses[0] - poses[1]).max()))

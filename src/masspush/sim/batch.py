@@ -29,7 +29,14 @@ from masspush.sim.chain import INITIAL_KEY, ChainLayout, ChainParams, compile_sc
 from masspush.sim.pushers import IDEAL_PUSHER, ArmPusher, Pusher, make_pusher
 from masspush.sim.pushers import compiled as compiled_law
 from masspush.sim.pushers.arm import ARM_PARK, PushPlan
-from masspush.sim.simulate import OK, PushOutcome, classify, failure_name, settle_cap_steps
+from masspush.sim.simulate import (
+    OK,
+    PushOutcome,
+    classify,
+    compile_settling_scene,
+    failure_name,
+    settle_cap_steps,
+)
 
 
 @cache
@@ -72,8 +79,14 @@ class ChainBatch:
         self._qvel = self.batch.bind("qvel")
         self._ctrl = self.batch.bind("ctrl")
         self._arms: ArmLockstep | None = None
+        self._alone: mujoco.batch.Batch | None = None
         if isinstance(self.pusher, ArmPusher):
             self._arms = ArmLockstep(self.batch, self.pusher, self.models[0], physics)
+            # Where the chains settle once the first rest check is past (`ChainSim.settle`).
+            alone = [compile_settling_scene(c, physics) for c in chains]
+            self._alone = mujoco.batch.Batch(alone[0], len(chains), nthread)
+            self._alone.set_models(alone)
+            self._alone.reset(keyframe=INITIAL_KEY)
         else:
             pusher_joint = self.models[0].joint("pusher_x")
             self._pusher_q = int(pusher_joint.qposadr[0])
@@ -203,8 +216,24 @@ class ChainBatch:
         self._ctrl[ids] = 0.0
 
     def settle(self, ids: np.ndarray) -> tuple[list[str | None], np.ndarray]:
-        """Step the chains `ids` until each is at rest or fails; (failure per chain, steps)."""
-        return settle(self.batch, ids, self.layout, self.physics)
+        """Step the chains `ids` until each is at rest or fails; (failure per chain, steps).
+        Where an arm pushes, as `ChainSim.settle`: after the first rest check the chains
+        still moving settle in the settling scenes, without the arm."""
+        if self._alone is None:
+            return settle(self.batch, ids, self.layout, self.physics)
+        ph = self.physics
+        k = ph.rest_check_steps
+        failures, steps, moving = settle_steps(self.batch, ids, self.layout, ph, stop=k)
+        if moving.size:
+            hand_over_batch(self.batch, self._alone, moving, self.layout)
+            later, later_steps, left = settle_steps(self._alone, moving, self.layout, ph, start=k)
+            hand_over_batch(self._alone, self.batch, moving, self.layout)
+            self.batch.forward(moving)
+            for i in moving:
+                failures[i], steps[i] = later[i], later_steps[i]
+            for i in left:
+                failures[i] = "timeout"
+        return failures, steps
 
 
 def step_batch(batch: mujoco.batch.Batch, ids: np.ndarray, nstep: int) -> list[int]:
@@ -221,13 +250,26 @@ def settle(
 ) -> tuple[list[str | None], np.ndarray]:
     """Step the chains `ids` of `batch` until each is at rest or fails, checking as
     `ChainSim.settle` does and at the same steps: (failure per simulation, steps taken)."""
+    failures, steps, moving = settle_steps(batch, ids, layout, physics)
+    for i in moving:
+        failures[int(i)] = "timeout"
+    return failures, steps
+
+
+def settle_steps(
+    batch: mujoco.batch.Batch, ids: np.ndarray, layout: ChainLayout, physics: PhysicsConfig,
+    start: int = 0, stop: int | None = None,
+) -> tuple[list[str | None], np.ndarray, np.ndarray]:  # fmt: skip
+    """`settle` from `start` settling steps already taken until `stop` (the cap by
+    default): (failure per simulation, steps taken, the ids still moving at `stop`)."""
     k = physics.rest_check_steps
-    cap = settle_cap_steps(physics)
+    cap = settle_cap_steps(physics) if stop is None else stop
     qpos, qvel = batch.bind("qpos"), batch.bind("qvel")
     failures: list[str | None] = [None] * batch.nsim
     steps = np.zeros(batch.nsim, dtype=int)
     moving = np.asarray(ids, dtype=int)
-    taken = 0
+    taken = start
+    steps[moving] = taken
     while moving.size and taken < cap:
         nan = step_batch(batch, moving, k)
         for i in nan:
@@ -239,9 +281,16 @@ def settle(
         for i, c in zip(moving[code != OK], code[code != OK], strict=True):
             failures[int(i)] = failure_name(c)
         moving = moving[(code == OK) & ~at_rest]
-    for i in moving:
-        failures[int(i)] = "timeout"
-    return failures, steps
+    return failures, steps, moving
+
+
+def hand_over_batch(
+    source: mujoco.batch.Batch, target: mujoco.batch.Batch, ids: np.ndarray, layout: ChainLayout
+) -> None:
+    """`masspush.sim.simulate.hand_over` for simulations `ids` of two batches."""
+    for name, n in (("qpos", layout.nq), ("qvel", layout.nv), ("qacc_warmstart", layout.nv)):
+        target.bind(name)[ids, :n] = source.bind(name)[ids, :n]
+    target.bind("time")[ids] = source.bind("time")[ids]
 
 
 def _compiled_law(pusher: str) -> ctypes.CDLL:

@@ -16,7 +16,7 @@ import numpy as np
 from masspush.config import PhysicsConfig
 from masspush.sim.actions import PushSpec, action_to_push, push_geometry
 from masspush.sim.chain import INITIAL_KEY, ChainLayout, ChainParams, compile_scene
-from masspush.sim.pushers import Pusher, StepHook, StiffPusher
+from masspush.sim.pushers import ArmPusher, Pusher, StepHook, StiffPusher
 
 FAILURES = ("nan", "unstable", "timeout", "arm_contact", "unreachable", "left_workspace")
 """Why a push can fail: the simulation diverged (NaN/inf); the chain flew off the table,
@@ -104,6 +104,46 @@ def settle_cap_steps(physics: PhysicsConfig) -> int:
     return k * math.ceil(physics.settle_time_cap / physics.timestep / k)
 
 
+SETTLING_ANCHOR = "settling_anchor"
+
+
+def add_settling_anchor(spec: mujoco.MjSpec, physics: PhysicsConfig) -> None:
+    """A damped slide joint on a body below the table, touching nothing: the settling
+    scene's stand-in for an arm's damped joints. MuJoCo's implicit integration solves
+    for the accelerations again where any joint is damped, and skips that solve where none
+    is; without the anchor the chain's accelerations would round differently (1e-16) from
+    those of the arm's scene, and chaotic slides would carry that far."""
+    body = spec.worldbody.add_body(name=SETTLING_ANCHOR, pos=[0.0, 0.0, -10.0])
+    body.add_joint(
+        name=SETTLING_ANCHOR, type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[1.0, 0.0, 0.0], damping=1.0
+    )
+    body.add_geom(
+        type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.01, 0.0, 0.0], mass=1.0, contype=0,
+        conaffinity=0,
+    )  # fmt: skip
+
+
+def compile_settling_scene(chain: ChainParams, physics: PhysicsConfig) -> mujoco.MjModel:
+    """The chain alone (with `add_settling_anchor`), where a chain pushed by an arm settles.
+
+    Once the arm is parked it touches nothing, yet its joints cost a third of every step
+    of the settling. Settling here gives the rest poses of the arm's scene exactly (tested),
+    provided the first `rest_check_steps` after the push are stepped in the arm's scene:
+    MuJoCo warm-starts its contact solver only if that beats a cold start over all joints,
+    and at the first step after a push the arm's accelerations are still those of the push
+    (afterwards they are the parked arm's, ~1e-14)."""
+    return compile_scene(chain, physics, add_settling_anchor)
+
+
+def hand_over(source: mujoco.MjData, target: mujoco.MjData, layout: ChainLayout) -> None:
+    """The chain's state (its joints come first in every scene) from one scene to the
+    other: poses, velocities, the solver's warm start and the time."""
+    target.qpos[: layout.nq] = source.qpos[: layout.nq]
+    target.qvel[: layout.nv] = source.qvel[: layout.nv]
+    target.qacc_warmstart[: layout.nv] = source.qacc_warmstart[: layout.nv]
+    target.time = source.time
+
+
 class ChainSim:
     """One chain in a MuJoCo scene with a pusher, always observed at rest."""
 
@@ -113,9 +153,15 @@ class ChainSim:
         physics: PhysicsConfig,
         pusher: Pusher | None = None,
         adjust: Callable[[mujoco.MjModel], None] | None = None,
+        settle_alone: bool = True,
     ):
         """`adjust`, if given, edits the compiled model before anything is simulated (the
-        sim-to-real target world changes solver and contact parameters this way)."""
+        sim-to-real target world changes solver and contact parameters this way).
+        `settle_alone`: where an arm pushes, let the chain settle in a scene of its own
+        (`compile_settling_scene`: the same rest poses, a tenth less time a push); False
+        keeps the arm in every step, the reference the tests compare with. A model that
+        `adjust` edits is always the one the chain settles in (the target world draws its
+        edits at random and edits the model again between pushes)."""
         if chain.n_links != physics.n_links:
             raise ValueError(f"chain has {chain.n_links} links, physics config {physics.n_links}")
         self.chain = chain
@@ -130,6 +176,10 @@ class ChainSim:
             adjust(self.model)
         self.data = mujoco.MjData(self.model)
         self.layout = ChainLayout.of(self.model, chain.n_links)
+        self._alone: tuple[mujoco.MjModel, mujoco.MjData] | None = None
+        if settle_alone and adjust is None and isinstance(self.pusher, ArmPusher):
+            alone = compile_settling_scene(chain, physics)
+            self._alone = (alone, mujoco.MjData(alone))
         mujoco.mj_resetDataKeyframe(self.model, self.data, INITIAL_KEY)
         mujoco.mj_forward(self.model, self.data)
         # The chain is built resting exactly on the table; let the soft contacts take
@@ -182,24 +232,37 @@ class ChainSim:
         return None if inside else "left_workspace"
 
     def settle(self) -> tuple[str | None, int]:
-        """Step until the chain is at rest or fails: (failure or None, steps taken)."""
+        """Step until the chain is at rest or fails: (failure or None, steps taken).
+
+        Where an arm pushes, the steps after the first rest check run in the settling
+        scene (`compile_settling_scene`) unless a step hook watches this scene."""
         k = self.physics.rest_check_steps
         cap = settle_cap_steps(self.physics)
+        model, data = self.model, self.data
         steps = 0
+        failure: str | None = "timeout"
         while steps < cap:
             if self.on_step is None:
-                mujoco.mj_step(self.model, self.data, nstep=k)
+                mujoco.mj_step(model, data, nstep=k)
             else:
                 for _ in range(k):
-                    mujoco.mj_step(self.model, self.data)
+                    mujoco.mj_step(model, data)
                     self.on_step()
             steps += k
-            code, at_rest = classify_one(self.data.qpos, self.data.qvel, self.layout, self.physics)
+            code, at_rest = classify_one(data.qpos, data.qvel, self.layout, self.physics)
             if code != OK:
-                return failure_name(code), steps
+                failure = failure_name(code)
+                break
             if at_rest:
-                return None, steps
-        return "timeout", steps
+                failure = None
+                break
+            if data is self.data and self._alone is not None and self.on_step is None:
+                model, data = self._alone
+                hand_over(self.data, data, self.layout)
+        if data is not self.data:
+            hand_over(data, self.data, self.layout)
+            mujoco.mj_forward(self.model, self.data)
+        return failure, steps
 
     def _state(self) -> np.ndarray:
         spec = mujoco.mjtState.mjSTATE_INTEGRATION
