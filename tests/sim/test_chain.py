@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from masspush.config import PhysicsConfig
-from masspush.sim.chain import ChainParams, link_poses, quat_yaw, sample_chain
+from masspush.sim.chain import ChainParams, compile_scene, link_poses, quat_yaw, sample_chain
 from masspush.sim.simulate import ChainSim
 
 
@@ -107,3 +107,51 @@ def test_self_collision_stops_neighbouring_links_passing_through():
     # Boxes of width w with a gap w between them meet at pi/2; they must not pass it.
     assert max_angle < math.pi / 2 + 0.15
     assert deepest > -0.005
+
+
+def _model_differences(a: mujoco.MjModel, b: mujoco.MjModel) -> list[str]:
+    """The names of the model fields (arrays, options, statistics) whose bits differ."""
+    differ = []
+    for name in dir(a):
+        value = getattr(a, name) if not name.startswith("_") else None
+        if isinstance(value, np.ndarray):
+            other = getattr(b, name)
+            if value.shape != other.shape or not np.array_equal(value, other, equal_nan=True):
+                differ.append(name)
+    for group in ("opt", "stat", "vis"):
+        x, y = getattr(a, group), getattr(b, group)
+        for name in dir(x):
+            if name.startswith("_") or callable(getattr(x, name)):
+                continue
+            try:
+                same = np.array_equal(np.asarray(getattr(x, name)), np.asarray(getattr(y, name)))
+            except TypeError:  # a nested struct: its fields do not change with the chain
+                continue
+            if not same:
+                differ.append(f"{group}.{name}")
+    return differ
+
+
+@pytest.mark.parametrize("n_links", [2, 3])
+@pytest.mark.parametrize("scene", ["stiff", "kuka", "ur10-stationary", "settling"])
+def test_a_reused_scene_is_the_compiled_scene_to_the_last_bit(n_links, scene):
+    from masspush.sim.pushers import make_pusher
+    from masspush.sim.simulate import add_settling_anchor
+
+    physics = PhysicsConfig(n_links=n_links, mass_range=(0.1, 10.0))
+    add = add_settling_anchor if scene == "settling" else make_pusher(scene).add_to
+    rng = np.random.default_rng(n_links)
+    chains = [sample_chain(physics, rng) for _ in range(12)]
+    # Extremes: the joints at their limits, a chain turned half round, the lightest links.
+    limit = physics.joint_limit
+    angles = (limit,) + (-limit,) * (n_links - 2)
+    chains.append(
+        ChainParams((0.1,) * n_links, 0.2, (0.08,) * n_links, angles, (-0.4, 0.3, math.pi))
+    )
+    for chain in chains:
+        compiled = compile_scene(chain, physics, add)
+        reused = compile_scene(chain, physics, add, reuse=f"test-{scene}")
+        assert _model_differences(reused, compiled) == []
+    # A field that differs is found: the check can fail.
+    other = compile_scene(chains[0], physics, add, reuse=f"test-{scene}")
+    assert "stat.meaninertia" in _model_differences(other, compiled)

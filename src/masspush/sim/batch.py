@@ -35,6 +35,7 @@ from masspush.sim.simulate import (
     classify,
     compile_settling_scene,
     failure_name,
+    scene_name,
     settle_cap_steps,
 )
 
@@ -70,7 +71,8 @@ class ChainBatch:
             _compiled_law(pusher)  # refused before anything is compiled
         self.chains = list(chains)
         self.physics = physics
-        self.models = [compile_scene(c, physics, self.pusher.add_to) for c in chains]
+        name = scene_name(self.pusher)
+        self.models = [compile_scene(c, physics, self.pusher.add_to, name) for c in chains]
         self.batch = mujoco.batch.Batch(self.models[0], len(chains), nthread)
         self.batch.set_models(self.models)
         self.batch.reset(keyframe=INITIAL_KEY)

@@ -132,7 +132,13 @@ def compile_settling_scene(chain: ChainParams, physics: PhysicsConfig) -> mujoco
     MuJoCo warm-starts its contact solver only if that beats a cold start over all joints,
     and at the first step after a push the arm's accelerations are still those of the push
     (afterwards they are the parked arm's, ~1e-14)."""
-    return compile_scene(chain, physics, add_settling_anchor)
+    return compile_scene(chain, physics, add_settling_anchor, reuse="settling")
+
+
+def scene_name(pusher: Pusher) -> str | None:
+    """The name under which `compile_scene` reuses a pusher's scene (`reuse`): the known
+    pushers' scenes depend on their name and the physics alone; None for any other."""
+    return pusher.name if isinstance(pusher, (StiffPusher, ArmPusher)) else None
 
 
 def hand_over(source: mujoco.MjData, target: mujoco.MjData, layout: ChainLayout) -> None:
@@ -171,7 +177,7 @@ class ChainSim:
         """Called after every physics step, if set (to record video)."""
         self.phase = "settle"
         """"push" while the pusher acts, "settle" while the chain slides to rest."""
-        self.model = compile_scene(chain, physics, self.pusher.add_to)
+        self.model = compile_scene(chain, physics, self.pusher.add_to, scene_name(self.pusher))
         if adjust is not None:
             adjust(self.model)
         self.data = mujoco.MjData(self.model)
