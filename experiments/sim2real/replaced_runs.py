@@ -19,16 +19,13 @@ import sys
 
 import numpy as np
 
-from masspush.data import read_recording
-from masspush.learn import load_model
-from masspush.models import resolve_model
 from masspush.real import (
     ClassifierConfig,
-    check_recording_fits,
     episode_log_probs,
     fit_classifier,
     labelled,
     predictor_features,
+    read_with_predictor,
     stratified_folds,
 )
 
@@ -63,10 +60,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.draws < 1:
         sys.exit("error: --draws must be at least 1")
     try:
-        recording = read_recording(args.recording)
-        predictor, meta = load_model(resolve_model(args.model, args.setting), args.setting)
-        check_recording_fits(
-            recording, args.recording, args.setting, predictor.n_links, args.allow_mismatch, meta
+        recording, predictor, _, _ = read_with_predictor(
+            args.recording, args.model, args.setting, args.allow_mismatch
         )
         labels, classes = labelled(recording)
     except (OSError, ValueError) as err:

@@ -19,7 +19,10 @@ EXPORTS = {
     "finetune": ("PAPER_CLASSES", "ClassifierConfig", "classifier_inputs", "cross_validate",
                  "episode_log_probs", "fit_classifier", "labelled", "predictor_features",
                  "start_pose_control", "start_pose_features", "stratified_folds"),
-    "classify": ("ClassifyJob", "FinetuneJob", "check_recording_fits", "classify", "finetune"),
+    "classify": (
+        "ClassifyJob", "FinetuneJob", "check_recording_fits", "classify", "finetune",
+        "read_with_predictor",
+    ),
     "target_world": ("TRAINING_KNOBS", "Lab", "TargetWorld", "TargetWorldRobot", "WorldRanges",
                      "scaled_world"),
     "sim2real": ("ARMS", "FEATURE_KINDS", "FEATURE_NAMES", "Sim2RealConfig", "Sim2RealJob",

@@ -4,6 +4,8 @@ recording of labelled episodes (`masspush.real.finetune` holds the classifier it
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -56,13 +58,8 @@ def finetune(job: FinetuneJob, config: ClassifierConfig) -> list[str]:
     """Cross-validate the classifier, then save it trained on every episode (or fine-tune
     the predictor); the report."""
     setting = get_setting(job.setting, job.settings_file)
-    path = resolve_model(job.model, setting.name)
-    predictor, meta = load_model(
-        path, setting.name, allow_mismatch=job.allow_mismatch, n_links=setting.n_links
-    )
-    recording = read_recording(job.episodes)
-    check_recording_fits(
-        recording, job.episodes, setting.name, setting.n_links, job.allow_mismatch, meta
+    recording, predictor, meta, path = read_with_predictor(
+        job.episodes, job.model, setting.name, job.allow_mismatch, setting.n_links
     )
     episodes = recording.to_episodes()
     if job.predictor_out:
@@ -107,6 +104,20 @@ def episode_counts(recording: Recording, classes: list[str]) -> list[str]:
             f"  {label}: {len(ours)} episodes, {pushes:.1f} pushes each, ended early: {early}"
         )
     return lines
+
+
+def read_with_predictor(
+    episodes: str, model: str, setting: str, allow_mismatch: bool = False,
+    n_links: int | None = None,
+) -> tuple[Recording, Any, dict, Path]:  # fmt: skip
+    """A recording and the predictor that is to read it (a name `resolve_model` knows, or
+    a file), checked against each other (`check_recording_fits`): (the recording, the
+    predictor, its metadata, its file). Raises ValueError or OSError naming the file."""
+    path = resolve_model(model, setting)
+    predictor, meta = load_model(path, setting, allow_mismatch=allow_mismatch, n_links=n_links)
+    recording = read_recording(episodes)
+    check_recording_fits(recording, episodes, setting, predictor.n_links, allow_mismatch, meta)
+    return recording, predictor, meta, path
 
 
 def check_recording_fits(
