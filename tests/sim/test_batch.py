@@ -142,3 +142,25 @@ def test_arms_step_together_many_steps_a_call(monkeypatch):
     steps = sum(n for n in controlled if n != "park")
     assert steps == max(o.steps - round(o.settle_time / physics.timestep) for o in outcomes)
     assert len(controlled) - 3 < steps / 5
+
+
+@needs_compiled_law
+@pytest.mark.parametrize("cap", [0.01, 0.05])
+def test_arms_in_lockstep_time_out_as_one_at_a_time(cap):
+    # A settling cap of one rest check (no step in the settling scenes) or of five, from
+    # the first push on: pushes end in 'timeout' as with the arm in every step.
+    physics = PhysicsConfig(n_links=2)
+    rng = np.random.default_rng(8)
+    chains = [sample_chain(physics, rng) for _ in range(4)]
+    batch = ChainBatch(chains, physics, nthread=2, pusher="kuka")
+    sims = [ChainSim(c, physics, make_pusher("kuka"), settle_alone=False) for c in chains]
+    capped = replace(physics, settle_time_cap=cap)
+    batch.physics = capped
+    for sim in sims:
+        sim.physics = capped
+    actions = np.array([(0.8, 0.5), (-0.9, 0.2), (0.7, -0.6), (0.95, 0.9)])
+    outcomes = batch.push(actions)
+    for i, sim in enumerate(sims):
+        assert sim.push(actions[i]) == outcomes[i]
+        np.testing.assert_array_equal(batch.configs()[i], sim.config())
+    assert [o.failure for o in outcomes].count("timeout") >= 3

@@ -210,9 +210,9 @@ class PolicyConfig:
     The physics is the same push for push (tested); the transitions are the batch
     environments' (`masspush.learn.vec_env`: a failed push freezes its chain until the
     episode's end, chains drawn from another seed stream), so a policy trains differently.
-    Off by default: as fast as the processes on 2 cores (50.7 against 51.7 pushes/s,
-    docs/notebook/2026-12-01-arm-speed.md), and runs already trained used the processes.
-    The stiff pusher always runs in lockstep."""
+    Off by default, because the runs already trained used the processes; faster since the
+    chains settle without the arm (2 links, 16 environments: 148-152 against 121 pushes/s,
+    docs/notebook/2026-12-01-arm-speed.md). The stiff pusher always runs in lockstep."""
     seed: int = 0
     """Seed of PPO (weights, sampled actions) and of its environments."""
 
