@@ -210,6 +210,9 @@ class PPOBench:
     """Numbers of parallel environments to measure."""
     n_steps: int | None = None
     """Pushes per environment between updates (default: the paper's rollout size)."""
+    lockstep_arms: bool = False
+    """An arm's environments in lockstep on the batch path (`masspush train
+    --lockstep-arms`) instead of a process each."""
 
     def __post_init__(self) -> None:
         if self.pusher is not None:
@@ -572,7 +575,7 @@ def bench_ppo(config: PPOBench = PPOBench()) -> list[dict]:
     from masspush.settings import get_setting
 
     setting, pusher, algos, steps = config.setting, config.pusher, config.algos, config.steps
-    envs, n_steps = config.envs, config.n_steps
+    envs, n_steps, lockstep = config.envs, config.n_steps, config.lockstep_arms
 
     spec = get_setting(setting)
     pusher = pusher or spec.pusher
@@ -581,7 +584,9 @@ def bench_ppo(config: PPOBench = PPOBench()) -> list[dict]:
     rows = []
     for algo in algos:
         for n_envs in envs:
-            policy = PolicyConfig(algo=algo, n_envs=n_envs, steps=steps, n_steps=n_steps)
+            policy = PolicyConfig(
+                algo=algo, n_envs=n_envs, steps=steps, n_steps=n_steps, lockstep_arms=lockstep
+            )
             with tempfile.TemporaryDirectory() as out:
                 t0 = time.perf_counter()
                 train_policy(config, predictor, out, policy, progress=False)
@@ -593,6 +598,7 @@ def bench_ppo(config: PPOBench = PPOBench()) -> list[dict]:
                     "pusher": pusher,
                     "algo": algo,
                     "envs": n_envs,
+                    "lockstep_arms": lockstep,
                     "pushes": done,
                     "seconds": round(elapsed, 1),
                     "pushes_per_s": round(done / elapsed, 1),
