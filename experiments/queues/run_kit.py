@@ -3,7 +3,8 @@
 A run directory (`masspush train --out DIR`) resumes stage by stage, but its data and PPO
 checkpoints are bulky and stay out of git, so a run that outlives a session's machine is
 lost with it. `pack` copies what the stages still to come need (the run's state, each
-finished stage's predictor and policy with their metadata) into KIT; `unpack` puts them
+finished stage's predictor and policy that a later stage or the export reads, with their
+metadata) into KIT; `unpack` puts them
 back into a run directory, where the same `masspush train` command resumes at the first
 unfinished stage (an unfinished stage starts over).
 
@@ -19,8 +20,23 @@ import shutil
 import sys
 from pathlib import Path
 
-KEPT = ("predictor.pt", "config.json", "policy.zip", "meta.json")
+KEPT = ("predictor.pt", "config.json", "policy.zip", "policy.json")
 """The files of a finished stage's directory that later stages and the exports read."""
+
+
+def needed(done: list[str]) -> list[str]:
+    """The finished stages whose models the rest of the run reads: the random-push one (RP
+    where a setting has none shipped), the first meta-iteration's
+    (TP), the latest predictor and policy (the next stages continue from them), and the
+    final predictor (TP+); the others' results are in the state's history already."""
+
+    def latest(kind: str) -> list[str]:
+        numbered = [s for s in done if s.startswith(kind) and s[len(kind) :].isdigit()]
+        return [max(numbered, key=lambda s: int(s[len(kind) :]))] if numbered else []
+
+    keep = {"predictor-0", "predictor-1", "policy-1", "predictor-final", *latest("predictor-"),
+            *latest("policy-")}  # fmt: skip
+    return [s for s in done if s in keep]
 
 
 def pack(run: Path, kit: Path) -> list[str]:
@@ -32,9 +48,9 @@ def pack(run: Path, kit: Path) -> list[str]:
     kit.mkdir(parents=True, exist_ok=True)
     shutil.copy2(state_path, kit / "state.json")
     copied = ["state.json"]
-    for stage in sorted(done):
+    for stage in needed(sorted(done)):
         source = run / stage
-        if not source.is_dir() or stage.startswith(("data-", "evaluate-")):
+        if not source.is_dir():
             continue
         for name in KEPT:
             if (source / name).is_file():
