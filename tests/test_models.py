@@ -29,8 +29,9 @@ def test_every_shipped_model_loads_by_name_with_its_policy():
             assert (SHIPPED_DIR / name / f"{model}.pt").exists(), (name, model)
     for name in KNOWN_SETTINGS:
         for path in sorted((SHIPPED_DIR / name).glob("*.pt")):
-            if path.name.endswith(".dirichlet.pt"):
-                load_head(path, name)
+            if path.name.endswith(".dirichlet.pt"):  # fitted on the predictor it ships beside
+                predictor, _ = load_model(path.with_name(path.name.replace(".dirichlet", "")))
+                load_head(path, name, predictor)
                 continue
             _, meta = load_model(resolve_model(path.stem, name), name)
             policy = model_policy(meta, path)  # a learned one loads its shipped policy file

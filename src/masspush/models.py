@@ -23,7 +23,13 @@ from masspush.evaluate import Estimator, EvalResult, EvaluateConfig, evaluate
 from masspush.learn.estimator import PredictorEstimator
 from masspush.learn.policy import model_policy, strip_policy
 from masspush.learn.predictor import MassPredictor, load_model, save_model
-from masspush.learn.uncertainty import HeadConfig, calibrate
+from masspush.learn.uncertainty import (
+    HeadConfig,
+    StaleHeadError,
+    calibrate,
+    head_path,
+    load_head,
+)
 from masspush.settings import Setting, get_setting
 
 SHIPPED_DIR = Path(__file__).parent / "models"
@@ -89,7 +95,8 @@ def ship_model(
     """Export the predictor file `source` as `target` (a .pt path), with the learned policy
     its metadata names, stripped of its optimiser state, beside it as
     `<target stem>.policy.zip`; or, with `shared_policy`, naming that policy file, already
-    beside `target`, instead. Returns the files written."""
+    beside `target`, instead. A Dirichlet head beside `target` fitted on another predictor is
+    removed (`masspush calibrate` fits a new one). Returns the files written."""
     source, target = Path(source), Path(target)
     model, meta = load_model(source)
     target.parent.mkdir(parents=True, exist_ok=True)
@@ -102,6 +109,12 @@ def ship_model(
         meta = {**meta, "policy_file": policy_target.name}
         written.append(policy_target)
     save_model(target, model, meta)
+    stale = head_path(target)
+    if stale.exists():  # fitted on the model this one replaces
+        try:
+            load_head(stale, predictor=model)
+        except StaleHeadError:
+            stale.unlink()
     return written
 
 

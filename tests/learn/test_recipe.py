@@ -105,6 +105,26 @@ def test_a_run_directory_refuses_another_config(tmp_path):
         Recipe(SETTING, "stiff", run, other, progress=False).run()
 
 
+def test_a_run_made_before_a_policy_field_resumes_only_with_that_fields_old_value(tmp_path):
+    import json
+
+    def recorded(pusher, policy):
+        recipe = Recipe(SETTING, pusher, tmp_path / pusher, replace(TINY, policy=policy))
+        return recipe, recipe._identity()
+
+    # An arm's run from before the lockstep (processes) recorded no `lockstep_arms`.
+    _, old = recorded("kuka", replace(TINY.policy, lockstep_arms=False))
+    assert "lockstep_arms" not in old["policy"]
+    recipe, new = recorded("kuka", TINY.policy)
+    assert new["policy"]["lockstep_arms"] is True
+    recipe.dir.mkdir()
+    recipe.state_path.write_text(json.dumps({"config": old, "timings": {}, "history": []}))
+    with pytest.raises(ValueError, match=r"\(policy.lockstep_arms\); use another --out"):
+        recipe._state()
+    # The stiff pusher always ran in lockstep: the field never enters its runs' identity.
+    assert "lockstep_arms" not in recorded("stiff", TINY.policy)[1]["policy"]
+
+
 def test_bad_recipe_configs_are_refused():
     with pytest.raises(ValueError, match="meta_iterations"):
         RecipeConfig(meta_iterations=0)

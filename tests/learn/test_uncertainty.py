@@ -7,10 +7,12 @@ from masspush import models as models_module
 from masspush.config import EnvConfig
 from masspush.data.rollout import EVAL, TRAIN, RandomPolicy, run_episodes
 from masspush.evaluate import EvaluateConfig
-from masspush.learn.predictor import load_model
+from masspush.learn.predictor import load_model, predictor_digest
 from masspush.learn.uncertainty import (
     HeadConfig,
     LearnedPosterior,
+    PrecisionHead,
+    StaleHeadError,
     coverage,
     fit_head,
     head_path,
@@ -62,7 +64,7 @@ def test_a_head_round_trips_and_refuses_another_setting(fitted, tmp_path):
 
 @pytest.mark.slow
 def test_evaluate_reports_coverage_when_the_model_has_a_head(fitted, tmp_path, monkeypatch):
-    _, head, _ = fitted
+    predictor, head, _ = fitted
     models = tmp_path / "models"
     shutil.copytree(SHIPPED_DIR / SETTING.name, models / SETTING.name,
                     ignore=shutil.ignore_patterns("*.dirichlet.pt"))  # fmt: skip
@@ -70,7 +72,8 @@ def test_evaluate_reports_coverage_when_the_model_has_a_head(fitted, tmp_path, m
     assert (
         "coverage" not in evaluate_model(EvaluateConfig(SETTING.name, "rp+", episodes=20)).to_dict()
     )
-    save_head(head_path(models / SETTING.name / "rp+.pt"), head, {"setting": SETTING.name})
+    meta = {"setting": SETTING.name, "predictor": predictor_digest(predictor)}
+    save_head(head_path(models / SETTING.name / "rp+.pt"), head, meta)
     assert (
         0
         <= evaluate_model(EvaluateConfig(SETTING.name, "rp+", episodes=20)).to_dict()["coverage"]
@@ -102,3 +105,46 @@ def test_a_model_without_a_head_is_refused_with_the_command_that_fits_one():
 def test_bad_head_configs_are_refused():
     with pytest.raises(ValueError, match="credible"):
         HeadConfig(credible=0.0)
+
+
+def _models_without_heads(tmp_path, monkeypatch):
+    models = tmp_path / "models"
+    shutil.copytree(SHIPPED_DIR / SETTING.name, models / SETTING.name,
+                    ignore=shutil.ignore_patterns("*.dirichlet.pt"))  # fmt: skip
+    monkeypatch.setattr(models_module, "SHIPPED_DIR", models)
+    return models / SETTING.name
+
+
+def test_a_head_fitted_on_another_predictor_is_refused_and_evaluate_drops_it(tmp_path, monkeypatch):
+    folder = _models_without_heads(tmp_path, monkeypatch)
+    rp_plus, _ = load_model(folder / "rp+.pt", SETTING.name)
+    tp_plus, _ = load_model(folder / "tp+.pt", SETTING.name)
+    assert predictor_digest(rp_plus) != predictor_digest(tp_plus)
+    head = PrecisionHead()
+    meta = {"setting": SETTING.name, "model": "rp+", "predictor": predictor_digest(rp_plus)}
+    path = save_head(head_path(folder / "rp+.pt"), head, meta)
+    load_head(path, SETTING.name, rp_plus)
+    refit = r"masspush calibrate --setting 2link-1-10 --model rp\+"
+    with pytest.raises(StaleHeadError, match=refit):
+        load_head(path, SETTING.name, tp_plus)
+    legacy = save_head(tmp_path / "old.dirichlet.pt", head, {"setting": SETTING.name})
+    with pytest.raises(StaleHeadError):  # fitted before heads recorded their predictor
+        load_head(legacy, SETTING.name, rp_plus)
+    # The same head beside TP+: its estimate still counts, its intervals are not reported.
+    shutil.copy(path, head_path(folder / "tp+.pt"))
+    with pytest.warns(UserWarning, match="fitted on another predictor"):
+        result = evaluate_model(EvaluateConfig(SETTING.name, "tp+", episodes=3)).to_dict()
+    assert "coverage" not in result and result["episodes"] > 0
+
+
+def test_shipping_a_model_removes_the_head_of_the_one_it_replaces(tmp_path, monkeypatch):
+    from masspush.models import ship_model
+
+    folder = _models_without_heads(tmp_path, monkeypatch)
+    rp_plus, _ = load_model(folder / "rp+.pt", SETTING.name)
+    meta = {"setting": SETTING.name, "model": "rp+", "predictor": predictor_digest(rp_plus)}
+    save_head(head_path(folder / "rp+.pt"), PrecisionHead(), meta)
+    ship_model(folder / "rp+.pt", folder / "rp+.pt")  # the same predictor: its head stays
+    assert head_path(folder / "rp+.pt").exists()
+    ship_model(folder / "rp.pt", folder / "rp+.pt")  # another one: the head goes
+    assert not head_path(folder / "rp+.pt").exists()

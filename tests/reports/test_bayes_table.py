@@ -91,3 +91,36 @@ def test_a_filter_measurement_without_episodes_is_measured_again_for_pairing(tmp
     assert "per_episode" in measure("2link-1-10", "bayes", 5, root=tmp_path) and len(calls) == 1
     measure("2link-1-10", "bayes", 5, root=tmp_path)  # now cached with its episodes
     assert len(calls) == 1
+
+
+def test_a_learned_models_measurement_is_redone_once_its_files_change(tmp_path, monkeypatch):
+    from masspush.reports.bayes_table import measure
+
+    calls = []
+    monkeypatch.setattr(bayes_table_module, "run_model", fake_evaluate(calls))
+    digest = {"value": "a"}
+    monkeypatch.setattr(bayes_table_module, "model_files_digest", lambda s, m: digest["value"])
+    measure("2link-1-10", "tp+", 5, root=tmp_path)
+    measure("2link-1-10", "tp+", 5, root=tmp_path)
+    assert len(calls) == 1
+    digest["value"] = "b"  # retrained, or its head refitted
+    measure("2link-1-10", "tp+", 5, root=tmp_path)
+    assert len(calls) == 2
+
+
+def test_the_model_files_digest_covers_predictor_policy_and_head(tmp_path, monkeypatch):
+    import shutil
+
+    import masspush.models as models_module
+    from masspush.models import SHIPPED_DIR
+    from masspush.reports.bayes_table import model_files_digest
+
+    models = tmp_path / "models"
+    shutil.copytree(SHIPPED_DIR / "2link-1-10", models / "2link-1-10")
+    monkeypatch.setattr(models_module, "SHIPPED_DIR", models)
+    seen = {model_files_digest("2link-1-10", "tp+")}
+    for name in ("tp+.dirichlet.pt", "tp+.policy.zip", "tp+.pt"):
+        path = models / "2link-1-10" / name
+        path.write_bytes(path.read_bytes() + b"\0")
+        seen.add(model_files_digest("2link-1-10", "tp+"))
+    assert len(seen) == 4

@@ -31,10 +31,10 @@ import numpy as np
 
 from masspush.config import PhysicsConfig
 from masspush.sim.actions import action_to_push, push_geometry
-from masspush.sim.batch import ArmLockstep, settle
+from masspush.sim.batch import ArmLockstep, hand_over_batch, settle
 from masspush.sim.chain import ChainParams, box_inertia
 from masspush.sim.pushers import make_pusher, on_batch_path
-from masspush.sim.simulate import ChainSim
+from masspush.sim.simulate import ChainSim, hand_over
 
 READY_ACTION = np.array([0.3, 0.0])
 """The push after which the arm's joints are its ready pose [ours: a middling push]."""
@@ -64,7 +64,7 @@ class ArmScene:
         for s in (self.sim, self.settler):
             if s.layout.root_qpos != 0 or s.layout.root_dof != 0:
                 raise ValueError("the chain's joints must come first in both scenes")
-        self.nq, self.nv = self.sim.layout.nq, self.sim.layout.nv
+        self.nq = self.sim.layout.nq
         self.ready = None
         self.ready = self.push(self.sim.config(), READY_ACTION, chain.masses, chain.friction)[2]
 
@@ -90,7 +90,7 @@ class ArmScene:
         mujoco.mj_forward(settler.model, settler.data)
         failure, _ = settler.settle()
         mujoco.mj_setState(sim.model, sim.data, self.homes[0], self.spec)
-        self._hand_over(settler.data, sim.data)
+        hand_over(settler.data, sim.data, sim.layout)
         if self.ready is not None:
             sim.data.qpos[self.nq :] = self.ready
         mujoco.mj_forward(sim.model, sim.data)
@@ -101,17 +101,10 @@ class ArmScene:
         if failure is not None:
             return sim.config(), failure, arm_q
         mujoco.mj_setState(settler.model, settler.data, self.homes[1], self.spec)
-        self._hand_over(sim.data, settler.data)
+        hand_over(sim.data, settler.data, sim.layout)
         mujoco.mj_forward(settler.model, settler.data)
         failure, _ = settler.settle()
         return settler.config(), failure, arm_q
-
-    def _hand_over(self, source: mujoco.MjData, target: mujoco.MjData) -> None:
-        """The chain's state (poses, velocities, the solver's warm start) from one scene to
-        the other; both put the chain's joints first."""
-        target.qpos[: self.nq] = source.qpos[: self.nq]
-        target.qvel[: self.nv] = source.qvel[: self.nv]
-        target.qacc_warmstart[: self.nv] = source.qacc_warmstart[: self.nv]
 
 
 class LockstepScenes:
@@ -156,7 +149,7 @@ class LockstepScenes:
         chain.forward()
         failures, _ = settle(chain, everyone, scene.settler.layout, ph)
         arm.state[:] = scene.homes[0]
-        self._hand_over(chain, arm)
+        hand_over_batch(chain, arm, everyone, scene.sim.layout)
         arm.bind("qpos")[:, scene.nq :] = scene.ready
         arm.forward()
         configs = scene.settler.layout.config(chain.bind("qpos")).copy()
@@ -182,20 +175,13 @@ class LockstepScenes:
         sliding = np.array([i for i in pushing if pushed[i] is None], dtype=int)
         if sliding.size:
             chain.state[sliding] = scene.homes[1]
-            self._hand_over(arm, chain, sliding)
+            hand_over_batch(arm, chain, sliding, scene.sim.layout)
             chain.forward(sliding)
             settled, _ = settle(chain, sliding, scene.settler.layout, ph)
             final = scene.settler.layout.config(chain.bind("qpos"))
             for i in sliding:
                 failures[i], configs[i] = settled[i], final[i]
         return configs, failures
-
-    def _hand_over(self, source, target, ids=None) -> None:
-        """`ArmScene._hand_over` for simulations `ids` (all by default) of two batches."""
-        nq, nv = self.scene.nq, self.scene.nv
-        ids = slice(None) if ids is None else ids
-        for name, n in (("qpos", nq), ("qvel", nv), ("qacc_warmstart", nv)):
-            target.bind(name)[ids, :n] = source.bind(name)[ids, :n]
 
 
 @dataclass(frozen=True)

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import os
+import warnings
 
 import numpy as np
 
@@ -13,7 +14,13 @@ from masspush.data.rollout import EVAL, Policy, run_episodes
 from masspush.evaluate import EstimatorRun
 from masspush.learn.policy import model_policy
 from masspush.learn.predictor import MassPredictor, load_model
-from masspush.learn.uncertainty import PrecisionHead, coverage, head_path, load_head
+from masspush.learn.uncertainty import (
+    PrecisionHead,
+    StaleHeadError,
+    coverage,
+    head_path,
+    load_head,
+)
 from masspush.sim.pushers import IDEAL_PUSHER
 
 
@@ -35,11 +42,17 @@ class PredictorEstimator:
         name: str | None = None, allow_mismatch: bool = False, n_links: int | None = None,
     ) -> PredictorEstimator:  # fmt: skip
         """The model file `path` (trained for `setting`), pushed by `pusher` (the pusher it
-        was trained with by default), its policy and, where one lies beside it, its head.
+        was trained with by default), its policy and, where one fitted on it lies beside it, its
+        head.
         `allow_mismatch`: run a model of another setting or pusher (of `n_links` links)."""
         predictor, meta = load_model(path, setting, pusher, allow_mismatch, n_links)
         trained_for = meta.get("setting", {}).get("name", setting)
-        head = load_head(head_path(path), trained_for) if head_path(path).exists() else None
+        head = None
+        if head_path(path).exists():
+            try:
+                head = load_head(head_path(path), trained_for, predictor)
+            except StaleHeadError as err:  # the estimate stands; only its intervals would lie
+                warnings.warn(f"{err}; reporting no coverage", stacklevel=2)
         return cls(predictor, model_policy(meta, path), pusher or meta.get("pusher", IDEAL_PUSHER),
                    name or str(path), str(path), head)  # fmt: skip
 

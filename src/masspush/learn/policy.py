@@ -204,15 +204,16 @@ class PolicyConfig:
     a2 = 0 is the joint, where a fast push tips the chain over, and either side of it is as
     good as the other, so the gradient out of it vanishes. (0.5, 0.5) is a medium-speed push
     on the middle of the second link, which PPO then moves."""
-    lockstep_arms: bool = False
+    lockstep_arms: bool = True
     """An arm's environments in lockstep on the batch path (one process, MuJoCo's threads,
-    the arm's compiled law as its control callback) instead of one process each [ours].
+    the arm's compiled law as its control callback), as the stiff pusher's always are
+    [ours]; --no-lockstep-arms: one process each (where no compiled law exists, always).
     The physics is the same push for push (tested); the transitions are the batch
     environments' (`masspush.learn.vec_env`: a failed push freezes its chain until the
-    episode's end, chains drawn from another seed stream), so a policy trains differently.
-    Off by default, because the runs already trained used the processes; faster since the
-    chains settle without the arm (2 links, 16 environments: 148-152 against 121 pushes/s,
-    docs/notebook/2026-12-01-arm-speed.md). The stiff pusher always runs in lockstep."""
+    episode's end, chains drawn from another seed stream), so a policy trains differently
+    than in processes. Faster (2 links, 16 environments: 148-152 against 121 pushes/s,
+    docs/notebook/2026-12-01-arm-speed.md); the shipped 3link-0.1-1 was trained this way,
+    2link-0.1-1 in processes."""
     seed: int = 0
     """Seed of PPO (weights, sampled actions) and of its environments."""
 
@@ -251,7 +252,7 @@ class PolicyConfig:
 def make_vec_env(
     env_config: EnvConfig, predictor_path: str | os.PathLike, n_envs: int, seed: int,
     chain_env: ChainEnvFactory | None = None, workers: Workers = None, runs: int = 1,
-    reward: str = "paper", loss_reward: float = LOSS_REWARD, lockstep_arms: bool = False,
+    reward: str = "paper", loss_reward: float = LOSS_REWARD, lockstep_arms: bool = True,
 ):  # fmt: skip
     """`n_envs` pushing episodes: for a pusher with a batch path in lockstep on the
     multi-threaded batch path (`masspush.learn.vec_env`), for an arm, in another world

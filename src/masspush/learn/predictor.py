@@ -12,6 +12,7 @@ docs/notebook).
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
@@ -289,6 +290,16 @@ def load_model(
     model.load_state_dict(payload["state_dict"])
     model.eval()
     return model, meta
+
+
+def predictor_digest(model: MassPredictor) -> str:
+    """A fingerprint of the predictor's weights and normalisation (sha256, hex): what a
+    Dirichlet head fitted on its features records, so that a head outlives no retraining."""
+    digest = hashlib.sha256()
+    for name, tensor in model.state_dict().items():
+        digest.update(name.encode())
+        digest.update(tensor.detach().cpu().contiguous().numpy().tobytes())
+    return digest.hexdigest()
 
 
 def train_predictor(

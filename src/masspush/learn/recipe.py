@@ -28,9 +28,17 @@ from masspush.cluster.pool import Workers
 from masspush.data.dataset import code_version, collect, load_dataset
 from masspush.evaluate import evaluate
 from masspush.learn.estimator import PredictorEstimator
+from masspush.learn.features import LOSS_REWARD
 from masspush.learn.policy import LearnedPolicy, PolicyConfig, train_policy
 from masspush.learn.predictor import FAST, TrainConfig, load_model, train_predictor
 from masspush.settings import Setting
+from masspush.sim.pushers import pusher_kind
+
+ADDED_POLICY_FIELDS = {"runs": 1, "reward": "paper", "loss_reward": LOSS_REWARD,
+                       "lockstep_arms": False}  # fmt: skip
+"""Policy fields added after runs were made, with the value every run before them used: a
+run directory's recorded config leaves them out, so an old run still resumes (and one made
+otherwise does not pass for it)."""
 
 PREDICTOR = replace(FAST, features="relative")
 """Training of predictor-0: our shipped RP recipe (docs/notebook)."""
@@ -102,10 +110,13 @@ class Recipe:
     def _state(self) -> dict[str, Any]:
         if self.state_path.exists():
             state = json.loads(self.state_path.read_text())
-            if state["config"] != self._identity():
+            ours = self._identity()
+            if state["config"] != ours:
+                differ = sorted(_differences(state["config"], ours))
                 raise ValueError(
-                    f"{self.dir} holds a run with another setting, pusher or config; "
-                    "use another --out directory"
+                    f"{self.dir} holds a run with another setting, pusher or config "
+                    f"({', '.join(differ)}); use another --out directory, or the run's own "
+                    "options"
                 )
             return state
         return {"config": self._identity(), "timings": {}, "history": []}
@@ -116,11 +127,12 @@ class Recipe:
                 {"setting": self.setting.as_dict(), "pusher": self.pusher, **asdict(self.config)}
             )
         )
-        defaults = PolicyConfig()
-        # fields added after runs were made
-        for name in ("runs", "reward", "loss_reward", "lockstep_arms"):
-            if identity["policy"][name] == getattr(defaults, name):
-                del identity["policy"][name]  # as runs made before the field existed say it
+        policy = identity["policy"]
+        if not pusher_kind(self.pusher).arm:
+            del policy["lockstep_arms"]  # the stiff pusher always trains in lockstep
+        for name, value in ADDED_POLICY_FIELDS.items():
+            if name in policy and policy[name] == value:
+                del policy[name]  # as runs made before the field existed say it
         return identity
 
     def _save(self, state: dict[str, Any]) -> None:
@@ -265,3 +277,14 @@ class Recipe:
             self.setting, estimator, self.config.eval_episodes, self.config.seed, self.workers
         )
         state["history"].append({"stage": f"predictor-{i}", **scores.to_dict()})
+
+
+def _differences(recorded: Any, ours: Any, where: str = "") -> list[str]:
+    """The dotted names of the entries where two recorded configs differ."""
+    if isinstance(recorded, dict) and isinstance(ours, dict):
+        return [
+            name
+            for key in sorted(set(recorded) | set(ours))
+            for name in _differences(recorded.get(key), ours.get(key), f"{where}{key}.")
+        ]
+    return [] if recorded == ours else [where.rstrip(".") or "config"]

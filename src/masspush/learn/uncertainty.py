@@ -23,10 +23,19 @@ import torch
 from torch import nn
 
 from masspush.data.rollout import Episodes
-from masspush.learn.predictor import MassPredictor, read_torch_file, step_inputs
+from masspush.learn.predictor import (
+    MassPredictor,
+    predictor_digest,
+    read_torch_file,
+    step_inputs,
+)
 from masspush.sim.pushers import IDEAL_PUSHER
 
 FORMAT, VERSION = "masspush-dirichlet-head", 1
+
+
+class StaleHeadError(ValueError):
+    """A head fitted on another predictor's features (the model was retrained since)."""
 
 
 @dataclass(frozen=True)
@@ -165,7 +174,7 @@ class LearnedPosterior:
                 f"model {model!r} for {setting!r} has no Dirichlet head ({head_path(path)}); "
                 f"fit one with `masspush calibrate --setting {setting} --model {model}`"
             )
-        return cls(predictor, load_head(head_path(path), setting))
+        return cls(predictor, load_head(head_path(path), setting, predictor))
 
     def concentration(self, history: Episodes) -> np.ndarray:
         """(n,) the Dirichlet's concentration after the last push of a one-episode history."""
@@ -191,13 +200,23 @@ def save_head(path: str | os.PathLike, head: PrecisionHead, meta: dict[str, Any]
     return path
 
 
-def load_head(path: str | os.PathLike, setting: str | None = None) -> PrecisionHead:
+def load_head(
+    path: str | os.PathLike, setting: str | None = None, predictor: MassPredictor | None = None
+) -> PrecisionHead:
+    """A saved head; refused for another setting than `setting`, and (`StaleHeadError`) for
+    another predictor than `predictor`: a head reads the features of the one it was fitted
+    on, and those of a retrained model mean something else."""
     payload = read_torch_file(path, "Dirichlet head")
     if not isinstance(payload, dict) or payload.get("format") != FORMAT:
         raise ValueError(f"{path} is not a masspush Dirichlet head")
-    if setting is not None and payload["meta"].get("setting") != setting:
-        raise ValueError(
-            f"{path} belongs to setting {payload['meta'].get('setting')!r}, not {setting!r}"
+    meta = payload["meta"]
+    if setting is not None and meta.get("setting") != setting:
+        raise ValueError(f"{path} belongs to setting {meta.get('setting')!r}, not {setting!r}")
+    if predictor is not None and meta.get("predictor") != predictor_digest(predictor):
+        raise StaleHeadError(
+            f"{path} was fitted on another predictor than {meta.get('model', 'its model')!r} "
+            f"is now; refit it with `masspush calibrate --setting {meta.get('setting')} "
+            f"--model {meta.get('model', '<model>')}`"
         )
     head = PrecisionHead(payload["in_dim"], payload["hidden"])
     head.load_state_dict(payload["state_dict"])
@@ -230,6 +249,7 @@ def calibrate(
     head = fit_head(predictor, good, config)
     target = Path(out) if out else head_path(path)
     save_head(target, head, {"setting": setting.name, "model": str(model),
+                             "predictor": predictor_digest(predictor),
                              "config": asdict(config), "episodes": len(good)})  # fmt: skip
     return {"file": str(target), "episodes": len(good),
             "coverage_on_fit": coverage(predictor, head, good, config.credible)}  # fmt: skip

@@ -7,6 +7,7 @@ Each measurement is cached as results/bayes/<setting>-<model>.json, so an interr
 
 from __future__ import annotations
 
+import hashlib
 import json
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -19,7 +20,7 @@ from masspush.cluster.pool import Workers, check_address, open_pool
 from masspush.config import check_int
 from masspush.evaluate import evaluate
 from masspush.metrics import paired_difference_interval, paired_percentage_errors
-from masspush.models import load_estimator
+from masspush.models import load_estimator, resolve_model
 from masspush.reports.baselines import PAPER_TABLE, paper_settings
 from masspush.settings import get_setting
 
@@ -58,10 +59,12 @@ def measure(
     episodes) with each episode's estimate."""
     paired = model == "bayes" or suffix == PAIRED
     path = cache_path(root, setting, model, suffix)
+    files = None if model in BAYES_MODELS else model_files_digest(setting, model)
     if path.exists():
         cached = json.loads(path.read_text())
         if (
             cached.get("requested_episodes") == episodes
+            and (files is None or cached.get("model_files") == files)
             and (model not in BAYES_MODELS
                  or {**ADDED_SETTINGS, **cached.get("filter", {})} == filter_settings(setting))
             and (not paired or "per_episode" in cached)
@@ -69,6 +72,8 @@ def measure(
             return cached
     result = run_model(setting, model, episodes, seed, paired, workers)
     result["requested_episodes"] = episodes
+    if files is not None:
+        result["model_files"] = files
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(result, indent=2) + "\n")
     return result
@@ -82,6 +87,18 @@ def run_model(
     spec = get_setting(setting)
     estimator = load_estimator(model, spec)
     return evaluate(spec, estimator, episodes, seed, workers, per_episode).to_dict()
+
+
+def model_files_digest(setting: str, model: str) -> str:
+    """sha256 of a learned model's files (predictor, policy, Dirichlet head): a measurement
+    cached for a model since retrained or recalibrated is measured again."""
+    path = resolve_model(model, setting)
+    digest = hashlib.sha256()
+    for part in (path, path.with_name(f"{path.stem}.policy.zip"),
+                 path.with_name(f"{path.stem}.dirichlet.pt")):  # fmt: skip
+        digest.update(part.name.encode())
+        digest.update(part.read_bytes() if part.exists() else b"absent")
+    return digest.hexdigest()
 
 
 def filter_settings(setting: str) -> dict[str, Any]:

@@ -210,9 +210,9 @@ class PPOBench:
     """Numbers of parallel environments to measure."""
     n_steps: int | None = None
     """Pushes per environment between updates (default: the paper's rollout size)."""
-    lockstep_arms: bool = False
-    """An arm's environments in lockstep on the batch path (`masspush train
-    --lockstep-arms`) instead of a process each."""
+    lockstep_arms: bool = True
+    """An arm's environments in lockstep on the batch path, as `masspush train` runs them
+    (--no-lockstep-arms: a process each)."""
 
     def __post_init__(self) -> None:
         if self.pusher is not None:
