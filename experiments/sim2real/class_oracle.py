@@ -15,7 +15,9 @@ world's, what survives the gap.
         results/sim2real-governed-training/learned.jsonl [--episodes 15] [--frictions 6]
 
 Each episode's class log-posterior is cached beside the recording (.oracle.json), so a
-stopped run resumes.
+stopped run resumes. Each episode's filter is seeded by the episode's place in the
+recording, so the answer for an episode does not depend on `--episodes` (caches from
+before, seeded by the place among the episodes kept, are measured again).
 """
 
 from __future__ import annotations
@@ -33,13 +35,23 @@ from masspush.data import read_recording
 from masspush.real import labelled
 from masspush.settings import get_setting
 
+CACHE_VERSION = 2
+"""Version 2: each episode's filter seeded by its place in the recording."""
+
+
+def read_cache(cache: Path) -> dict[str, list[float]]:
+    """The cached log posteriors by episode id; none from a cache of another version."""
+    stored = json.loads(cache.read_text()) if cache.exists() else {}
+    return stored.get("episodes", {}) if stored.get("version") == CACHE_VERSION else {}
+
 
 def class_log_posteriors(
     recording, setting, pusher: str | None, classes: list[np.ndarray], frictions: np.ndarray,
-    cache: Path,
+    cache: Path, places: dict[str, int],
 ) -> dict[str, list[float]]:  # fmt: skip
-    """Episode id -> log posterior of each class after the episode's pushes."""
-    done = json.loads(cache.read_text()) if cache.exists() else {}
+    """Episode id -> log posterior of each class after the episode's pushes; `places`:
+    each episode's place in the recording, its filter's seed."""
+    done = read_cache(cache)
     n, k = len(classes), len(frictions)
     masses = np.repeat(np.array(classes, float), k, axis=0)
     friction = np.tile(frictions, n)
@@ -48,15 +60,15 @@ def class_log_posteriors(
     config = replace(config, lookahead_particles=min(config.lookahead_particles, n * k))
     filt = bayes.filter_for(setting, pusher, config=config, seed=0)
     try:
-        for i, episode in enumerate(tqdm(recording.episodes, desc="class oracle")):
+        for episode in tqdm(recording.episodes, desc="class oracle"):
             if episode["id"] in done:
                 continue
-            filt.reset(np.array(episode["lengths"], float), episode=i)
+            filt.reset(np.array(episode["lengths"], float), episode=places[episode["id"]])
             filt.masses, filt.friction = masses.copy(), friction.copy()
             filt.replay(episode["observations"], episode["actions"])
             w = filt.weights.reshape(n, k).sum(axis=1)
             done[episode["id"]] = np.log(np.maximum(w, 1e-300)).tolist()
-            cache.write_text(json.dumps(done))
+            cache.write_text(json.dumps({"version": CACHE_VERSION, "episodes": done}))
     finally:
         filt.close()
     return done
@@ -87,6 +99,7 @@ def main() -> None:
         parser.error(f"recording {path}: {err}")
     counts: dict[str, int] = {}
     kept = []
+    places = {episode["id"]: place for place, episode in enumerate(recording.episodes)}
     for episode in recording.episodes:
         counts[episode["label"]] = counts.get(episode["label"], 0) + 1
         if counts[episode["label"]] <= args.episodes:
@@ -100,12 +113,12 @@ def main() -> None:
     cache = Path(args.cache) if args.cache else path.with_suffix(".oracle.json")
     try:  # before any episode is weighed: a cache that cannot be written loses them all
         if not cache.exists():
-            cache.write_text("{}")
+            cache.write_text(json.dumps({"version": CACHE_VERSION, "episodes": {}}))
         with cache.open("a"):
             pass
     except OSError as err:
         parser.error(f"cache: cannot write {cache} ({err.strerror})")
-    posts = class_log_posteriors(recording, setting, args.pusher, classes, frictions, cache)
+    posts = class_log_posteriors(recording, setting, args.pusher, classes, frictions, cache, places)
 
     guess = np.array([int(np.argmax(posts[e["id"]])) for e in kept])
     print(f"{path}: {len(kept)} episodes, {len(names)} classes x {args.frictions} frictions")
