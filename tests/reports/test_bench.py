@@ -27,16 +27,14 @@ def test_ppo_benchmark_reports_a_rate_per_learner():
 
 
 @pytest.mark.slow
-def test_ppo_benchmark_runs_an_arm_in_lockstep_unless_told_otherwise():
+def test_ppo_benchmark_runs_an_arm_in_lockstep_by_default():
     from masspush.sim.pushers import compiled
 
     if compiled.library() is None:
         pytest.skip("the arms' lockstep runs the compiled law")
-    for lockstep in (True, False):
-        bench = PPOBench("2link-0.1-1", "kuka", ("mlp",), steps=16, envs=(4,), n_steps=8,
-                         **({} if lockstep else {"lockstep_arms": False}))  # fmt: skip
-        rows = bench_ppo(bench)
-        assert rows[0]["lockstep_arms"] is lockstep and rows[0]["pushes"] == 32
+    bench = PPOBench("2link-0.1-1", "kuka", ("mlp",), steps=16, envs=(4,), n_steps=8)
+    rows = bench_ppo(bench)
+    assert rows[0]["lockstep_arms"] is True and rows[0]["pushes"] == 32
 
 
 @pytest.mark.slow
