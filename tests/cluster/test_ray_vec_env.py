@@ -26,9 +26,12 @@ def test_ray_actors_give_the_transitions_of_the_local_environments(ray_cluster, 
         vec.close()
         return out
 
-    here = rollout(make_vec_env(env_config, predictor_file, 3, seed=11))
+    # An arm's environments as processes (--no-lockstep-arms): the lockstep runs in the
+    # learner's process whatever the pool.
+    here = rollout(make_vec_env(env_config, predictor_file, 3, seed=11, lockstep_arms=False))
     with open_pool(ray_cluster) as pool:
-        vec = make_vec_env(env_config, predictor_file, 3, seed=11, workers=pool)
+        vec = make_vec_env(env_config, predictor_file, 3, seed=11, workers=pool,
+                           lockstep_arms=False)  # fmt: skip
         assert type(vec).__name__ == "RayVecEnv"
         on_ray = rollout(vec)
     assert len(on_ray) == len(here)

@@ -52,8 +52,9 @@ class TrainJob:
     settings_file: str | None = None
     """TOML file with custom settings."""
     ray: str | None = None
-    """Run the collections, evaluations and (for an arm) PPO's environments on a Ray
-    cluster: auto, local, ray://HOST:PORT or HOST:PORT (pip install 'masspush[ray]')."""
+    """Run the collections, evaluations and (for an arm with --no-lockstep-arms) PPO's
+    environments on a Ray cluster: auto, local, ray://HOST:PORT or HOST:PORT (pip install
+    'masspush[ray]')."""
 
     def __post_init__(self) -> None:
         check_address(self.ray)
