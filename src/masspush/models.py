@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import os
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -115,6 +116,12 @@ def ship_model(
             load_head(stale, predictor=model)
         except StaleHeadError:
             stale.unlink()
+            warnings.warn(
+                f"removed {stale}: fitted on the model {target.name} replaced; fit one for the "
+                f"new model with `masspush calibrate --setting "
+                f"{meta.get('setting', {}).get('name')} --model {target}`",
+                stacklevel=2,
+            )
     return written
 
 

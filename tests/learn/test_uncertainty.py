@@ -146,5 +146,6 @@ def test_shipping_a_model_removes_the_head_of_the_one_it_replaces(tmp_path, monk
     save_head(head_path(folder / "rp+.pt"), PrecisionHead(), meta)
     ship_model(folder / "rp+.pt", folder / "rp+.pt")  # the same predictor: its head stays
     assert head_path(folder / "rp+.pt").exists()
-    ship_model(folder / "rp.pt", folder / "rp+.pt")  # another one: the head goes
+    with pytest.warns(UserWarning, match="removed .*rp\\+.dirichlet.pt"):
+        ship_model(folder / "rp.pt", folder / "rp+.pt")  # another one: the head goes
     assert not head_path(folder / "rp+.pt").exists()
