@@ -212,8 +212,7 @@ class PolicyConfig:
     environments' (`masspush.learn.vec_env`: a failed push freezes its chain until the
     episode's end, chains drawn from another seed stream), so a policy trains differently
     than in processes. Faster (2 links, 16 environments: 148-152 against 121 pushes/s,
-    docs/notebook/2026-12-01-arm-speed.md); the shipped 3link-0.1-1 was trained this way,
-    2link-0.1-1 in processes."""
+    docs/notebook/2026-12-01-arm-speed.md); the shipped KUKA models were trained this way."""
     seed: int = 0
     """Seed of PPO (weights, sampled actions) and of its environments."""
 
