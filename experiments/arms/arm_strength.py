@@ -28,7 +28,7 @@ import numpy as np
 from masspush.data import EVAL, run_episodes
 from masspush.models import model_and_policy
 from masspush.settings import get_setting
-from masspush.sim import ChainParams, ChainSim, make_pusher, pusher_kind, wrap_angle
+from masspush.sim import ChainSim, make_pusher, pusher_kind, wrap_angle
 
 SHIFT = 0.05
 """Share of the chain's mass moved from its first link to its last for the signal."""
@@ -43,16 +43,6 @@ def stronger(scale: float) -> Callable[[mujoco.MjModel], None]:
         model.actuator_ctrlrange[model.actuator_ctrllimited.astype(bool)] *= scale
 
     return adjust
-
-
-def chain_at_start(episodes, e: int, masses=None) -> ChainParams:
-    q0 = episodes.configs[e, 0].astype(float)
-    masses = episodes.masses[e] if masses is None else masses
-    return ChainParams(
-        tuple(float(m) for m in masses), float(episodes.friction[e]),
-        tuple(float(v) for v in episodes.lengths[e]), tuple(float(v) for v in q0[3:]),
-        (float(q0[0]), float(q0[1]), float(q0[2])),
-    )  # fmt: skip
 
 
 def shifted(masses: np.ndarray) -> np.ndarray | None:
@@ -117,7 +107,7 @@ def main(argv: list[str] | None = None) -> int:
             for masses, a in [(None, action), (shifted(fresh.masses[e]), action)] + [
                 (None, np.clip(action + n, -1, 1)) for n in noise[k]
             ]:
-                sim = ChainSim(chain_at_start(fresh, e, masses), physics, pusher, adjust)
+                sim = ChainSim(fresh.chain(e, masses), physics, pusher, adjust)
                 start = sim.config()
                 outcome = sim.push(a)
                 if outcome.failure is not None:

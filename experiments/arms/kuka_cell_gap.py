@@ -24,22 +24,13 @@ from masspush.data import EVAL, load_dataset, run_episodes
 from masspush.metrics import percentage_error
 from masspush.models import model_and_policy
 from masspush.settings import get_setting
-from masspush.sim import ChainParams, ChainSim, make_pusher
+from masspush.sim import ChainSim, make_pusher
 
 
 def final_error(predictor, episodes) -> float:
     ok = episodes.ok
     estimates = predictor.predict(episodes.select(ok))[:, -1]
     return percentage_error(estimates, episodes.mass_distribution[ok])
-
-
-def chain_at_start(episodes, e: int) -> ChainParams:
-    q0 = episodes.configs[e, 0].astype(float)
-    return ChainParams(
-        tuple(float(m) for m in episodes.masses[e]), float(episodes.friction[e]),
-        tuple(float(v) for v in episodes.lengths[e]), tuple(float(v) for v in q0[3:]),
-        (float(q0[0]), float(q0[1]), float(q0[2])),
-    )  # fmt: skip
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -75,7 +66,7 @@ def main(argv: list[str] | None = None) -> int:
     moved = {env_config.pusher: [], "stiff": []}
     rng = np.random.default_rng(args.seed)
     for e in np.flatnonzero(fresh.ok)[:60]:
-        chain, action = chain_at_start(fresh, e), fresh.executed[e, 0].astype(float)
+        chain, action = fresh.chain(e), fresh.executed[e, 0].astype(float)
         for name, pusher in ((env_config.pusher, arm), ("stiff", stiff)):
             ends = []
             for r in range(args.repeats):

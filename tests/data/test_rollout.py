@@ -99,3 +99,15 @@ def test_a_stationary_robots_episodes_record_the_governed_push():
         expected = governor([1.0, -0.5], out.observations[e, t], out.lengths[e])
         np.testing.assert_array_equal(out.actions[e, t], expected)
     assert (out.actions[done][:, 0] < 1.0).any()  # some pushes were slowed
+
+
+def test_an_episodes_chain_is_its_chain_at_its_true_start_pose():
+    eps = run_batch(EnvConfig(), RandomPolicy(), np.arange(3), TRAIN, 3)
+    for e in range(3):
+        chain = eps.chain(e)
+        np.testing.assert_allclose(chain.masses, eps.masses[e])
+        np.testing.assert_allclose(chain.lengths, eps.lengths[e])
+        assert chain.friction == pytest.approx(eps.friction[e])
+        assert chain.root_pose + chain.joint_angles == tuple(eps.configs[e, 0].astype(float))
+    heavier = eps.chain(1, masses=2 * eps.masses[1])
+    np.testing.assert_allclose(heavier.mass_distribution, eps.mass_distribution[1], rtol=1e-6)

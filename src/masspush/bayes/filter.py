@@ -275,13 +275,7 @@ class ParticleFilter:
             )  # fmt: skip
             return configs, np.array([f not in (None, "timeout") for f in failures])
         chains = [
-            ChainParams(
-                tuple(float(v) for v in mass),
-                float(mu),
-                self.lengths,
-                tuple(float(v) for v in start[3:]),
-                (float(start[0]), float(start[1]), float(start[2])),
-            )
+            ChainParams.at_pose(mass, mu, self.lengths, start)
             for mass, mu, start in zip(masses, friction, starts, strict=True)
         ]
         batch = ChainBatch(chains, self.physics, self.config.nthread)

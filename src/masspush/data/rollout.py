@@ -24,7 +24,7 @@ import numpy as np
 
 from masspush.cluster.pool import Workers, gather, is_pool, split
 from masspush.config import EnvConfig
-from masspush.sim.chain import sample_chain
+from masspush.sim.chain import ChainParams, sample_chain
 from masspush.sim.pushers import on_batch_path, reach_governor
 from masspush.sim.simulate import FAILURES
 
@@ -135,6 +135,14 @@ class Episodes:
         out = empty_episodes(e, k, lengths.shape[1])
         out.observations, out.actions, out.lengths = observations, actions, lengths
         return out
+
+    def chain(self, e: int, masses: Sequence[float] | None = None) -> ChainParams:
+        """Episode `e`'s chain at its true start pose (with other `masses` if given): to
+        push it again outside the episode."""
+        return ChainParams.at_pose(
+            self.masses[e] if masses is None else masses, self.friction[e], self.lengths[e],
+            self.configs[e, 0],
+        )  # fmt: skip
 
     def select(self, mask: np.ndarray) -> Episodes:
         return Episodes(**{f.name: getattr(self, f.name)[mask] for f in fields(self)})

@@ -55,6 +55,19 @@ class ChainParams:
         if not (math.isfinite(self.friction) and self.friction > 0):
             raise ValueError(f"friction must be a positive finite number, got {self.friction!r}")
 
+    @classmethod
+    def at_pose(
+        cls, masses: Sequence[float], friction: float, lengths: Sequence[float],
+        pose: Sequence[float],
+    ) -> ChainParams:  # fmt: skip
+        """The chain resting at `pose`, a configuration as observed: root x, y, yaw, then
+        the hinge angles."""
+        pose = [float(v) for v in pose]
+        return cls(
+            tuple(float(m) for m in masses), float(friction), tuple(float(v) for v in lengths),
+            tuple(pose[3:]), (pose[0], pose[1], pose[2]),
+        )  # fmt: skip
+
     @property
     def n_links(self) -> int:
         return len(self.masses)
