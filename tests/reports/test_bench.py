@@ -1,3 +1,5 @@
+from dataclasses import replace
+
 import pytest
 
 from masspush.reports.bench import (
@@ -27,7 +29,7 @@ def test_ppo_benchmark_reports_a_rate_per_learner():
 
 
 @pytest.mark.slow
-def test_ppo_benchmark_runs_an_arm_in_lockstep_by_default():
+def test_ppo_benchmark_runs_an_arm_in_lockstep_by_default_or_in_processes():
     from masspush.sim.pushers import compiled
 
     if compiled.library() is None:
@@ -35,6 +37,10 @@ def test_ppo_benchmark_runs_an_arm_in_lockstep_by_default():
     bench = PPOBench("2link-0.1-1", "kuka", ("mlp",), steps=16, envs=(4,), n_steps=8)
     rows = bench_ppo(bench)
     assert rows[0]["lockstep_arms"] is True and rows[0]["pushes"] == 32
+    # Then worker processes, in the same process as MuJoCo's batch threads: workers forked
+    # from such a process once hung; they now start from a fork server.
+    rows = bench_ppo(replace(bench, lockstep_arms=False))
+    assert rows[0]["lockstep_arms"] is False and rows[0]["pushes"] == 32
 
 
 @pytest.mark.slow

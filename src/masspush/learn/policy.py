@@ -17,6 +17,7 @@ Two learners, both from the field's libraries:
 from __future__ import annotations
 
 import json
+import multiprocessing
 import os
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
@@ -272,6 +273,11 @@ def make_vec_env(
         return VecMonitor(vec)
 
     vec_cls = WatchedSubprocVecEnv if n_envs > 1 else DummyVecEnv
+    # Workers start from a fork server, not a fork of this process: forking a process with
+    # threads (MuJoCo's batch pool, torch's, Ray's) once left workers stuck in a futex wait
+    # (docs/notebook/2026-12-01-arm-speed.md). The server imports the environment's code
+    # once, so that each worker forked from it does not import it again.
+    multiprocessing.get_context("forkserver").set_forkserver_preload([__name__])
     if is_pool(workers) and hasattr(workers, "vec_env"):
         vec_cls = workers.vec_env
     return sb3_make_vec_env(
@@ -287,7 +293,7 @@ def make_vec_env(
             "reward": reward,
             "loss_reward": loss_reward,
         },
-        vec_env_kwargs={"start_method": "fork"} if vec_cls is WatchedSubprocVecEnv else None,
+        vec_env_kwargs={"start_method": "forkserver"} if vec_cls is WatchedSubprocVecEnv else None,
     )
 
 
