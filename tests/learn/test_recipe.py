@@ -1,9 +1,11 @@
-from dataclasses import replace
+import json
+from dataclasses import asdict, replace
 
 import numpy as np
 import pytest
 
 from masspush import models as models_module
+from masspush.data.dataset import load_dataset
 from masspush.evaluate import EvaluateConfig
 from masspush.learn import recipe as train_module
 from masspush.learn.policy import PolicyConfig
@@ -22,6 +24,7 @@ TINY = RecipeConfig(
     policy=PolicyConfig(algo="mlp", n_envs=2, steps=64, n_steps=16),
     predictor=replace(PREDICTOR, steps=1500, batch_size=128, eval_every=500),
     finetune=replace(FINETUNE, steps=100, batch_size=64, eval_every=50, checkpoint_every=50),
+    final_finetune=replace(FINETUNE, steps=100, batch_size=64, eval_every=50),
     eval_episodes=200,
 )
 
@@ -95,6 +98,47 @@ def test_a_short_recipe_resumes_after_interruption_and_beats_the_floor(tmp_path,
     times = (tmp_path / "results" / "recipe-times.md").read_text()
     assert f"| {SETTING.name} | 2 x " in times  # one row per finished run
 
+    # A resized final stage redoes only itself: data-final grows, predictor-final retrains.
+    bigger = replace(
+        TINY, final_episodes=300, final_finetune=replace(TINY.final_finetune, steps=60)
+    )
+    state = Recipe(SETTING, "stiff", run, bigger, progress=False).run()
+    assert calls == ["data-0", "data-1", "data-2", "data-final", "data-final"]
+    assert load_dataset(run / "data-final")[0].episodes == 300
+    assert [h["stage"] for h in state["history"]] == stages
+    assert state["final"] == {"episodes": 300, "finetune": asdict(bigger.final_finetune)}
+    assert json.loads((run / "predictor-final" / "config.json").read_text())["train"]["steps"] == 60
+
+
+def test_a_run_made_before_final_finetune_redoes_its_final_stage_only_when_it_differs(tmp_path):
+    old_config = replace(TINY, final_episodes=None)
+    recipe = Recipe(SETTING, "stiff", tmp_path, old_config, log=lambda _: None)
+    old = recipe._identity()
+    del old["final_finetune"]  # as runs made before it recorded their config
+    done = {"data-final": 30.0, "predictor-final": 5.0, "evaluate-final": 1.0, "policy-2": 9.0}
+    history = [{"stage": "predictor-2"}, {"stage": "predictor-final"}]
+
+    def state_of(config):
+        recipe.state_path.write_text(
+            json.dumps({"config": old, "timings": dict(done), "history": list(history)})
+        )
+        (tmp_path / "predictor-final").mkdir(exist_ok=True)
+        return Recipe(SETTING, "stiff", tmp_path, config, log=lambda _: None)._state()
+
+    # Its final stage took first_episodes with the `finetune` config: the same sizes, kept.
+    same = replace(old_config, final_episodes=1500, final_finetune=TINY.finetune)
+    kept = state_of(same)
+    assert kept["timings"] == done and kept["history"] == history
+    assert kept["final"] == {"episodes": 1500, "finetune": asdict(TINY.finetune)}
+    # Today's default (4x the episodes) redoes it, keeping data-final's time to add to.
+    redone = state_of(old_config)
+    assert redone["final"]["episodes"] == 4 * 1500
+    assert redone["timings"] == {"policy-2": 9.0} and redone["carried"] == {"data-final": 30.0}
+    assert redone["history"] == history[:1] and not (tmp_path / "predictor-final").exists()
+    # Anything else that differs is still refused.
+    with pytest.raises(ValueError, match=r"\(meta_iterations\)"):
+        state_of(replace(old_config, meta_iterations=3))
+
 
 def test_a_run_directory_refuses_another_config(tmp_path):
     run = tmp_path / "run"
@@ -130,8 +174,8 @@ def test_bad_recipe_configs_are_refused():
         RecipeConfig(meta_iterations=0)
     with pytest.raises(ValueError, match="first_episodes"):
         RecipeConfig(first_episodes=1)
-    assert RecipeConfig().episodes(2) == (16_000, 8_000, 16_000)
-    assert RecipeConfig().episodes(3) == (32_000, 16_000, 32_000)
+    assert RecipeConfig().episodes(2) == (16_000, 8_000, 64_000)
+    assert RecipeConfig().episodes(3) == (32_000, 16_000, 128_000)
     assert np.isclose(TINY.policy.rollout_steps, 16)
 
 

@@ -46,7 +46,8 @@ def _fake_run(run_dir, tp_plus: float) -> None:
                              ("predictor-final", tp_plus))
     ]  # fmt: skip
     timings = {"data-0": 60.0, "policy-1": 120.0, "evaluate-final": 6.0}
-    config = {"meta_iterations": 1, "policy": {"steps": 1000}}
+    config = {"meta_iterations": 1, "policy": {"steps": 1000}, "first_episodes": None,
+              "final_episodes": None, "finetune": {"steps": 5000}}  # fmt: skip
     (run_dir / "policy-1").mkdir(parents=True)
     (run_dir / "policy-1" / "progress.csv").write_text(
         "timesteps,percentage_error,mean_reward,episodes\n512,15.0,7.0,100\n1024,13.0,7.2,100\n"
@@ -66,7 +67,9 @@ def test_the_table_outlives_the_run_directories(tmp_path):
     first = (tmp_path / "results" / "table1.md").read_text()
     # The bulky run directories go; the committed records give the same table and figures.
     shutil.rmtree(tmp_path / "runs")
-    assert reproduce.collect_rows(names, pushers, tmp_path)[0]["tp+"] == 9.5
+    row = reproduce.collect_rows(names, pushers, tmp_path)[0]
+    # A run from before the final stage's record took TP+ on first_episodes' worth (16k).
+    assert row["tp+"] == 9.5 and row["recipe"] == "1 x 1k PPO, TP+ on 16k"
     reproduce.write_outputs(names, pushers, root=tmp_path)
     assert (tmp_path / "results" / "table1.md").read_text() == first
     # A setting with neither (a run from before the records) keeps its last row, marked.

@@ -51,20 +51,35 @@ RECIPE_FIELDS = ("meta_iterations", "first_episodes", "iteration_episodes", "fin
 
 def _recipe_options(p: argparse.ArgumentParser) -> None:
     from masspush.learn.policy import PolicyConfig
-    from masspush.learn.recipe import RecipeConfig
+    from masspush.learn.recipe import FINAL_FINETUNE, RecipeConfig
 
     renamed = {"steps": "ppo_steps", "n_envs": "envs", "runs": "policy_runs",
                "reward": "policy_reward", "loss_reward": "policy_loss_reward",
                "lockstep_arms": "lockstep_arms"}  # fmt: skip
     add_fields(p, PolicyConfig, only=("algo", *renamed), prefix="policy_", rename=renamed)
     add_fields(p, RecipeConfig, only=RECIPE_FIELDS)
+    p.add_argument(
+        "--final-steps",
+        type=int,
+        default=argparse.SUPPRESS,
+        help="Gradient steps of TP+'s fine-tuning on the final policy's rollouts; changing "
+        f"it (or --final-episodes) on a run redoes only TP+ (default: {FINAL_FINETUNE.steps})",
+    )
 
 
 def _recipe(args: argparse.Namespace):
-    from masspush.learn.policy import PolicyConfig
-    from masspush.learn.recipe import RecipeConfig
+    from dataclasses import replace
 
-    return build(RecipeConfig, args, policy=build(PolicyConfig, args, prefix="policy_"))
+    from masspush.learn.policy import PolicyConfig
+    from masspush.learn.recipe import FINAL_FINETUNE, RecipeConfig
+
+    policy = build(PolicyConfig, args, prefix="policy_")
+    if "final_steps" not in args:
+        return build(RecipeConfig, args, policy=policy)
+    if args.final_steps < 1:
+        raise ValueError(f"--final-steps must be >= 1, got {args.final_steps}")
+    final = replace(FINAL_FINETUNE, steps=args.final_steps)
+    return build(RecipeConfig, args, policy=policy, final_finetune=final)
 
 
 def _train_options(p: argparse.ArgumentParser) -> None:

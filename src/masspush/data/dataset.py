@@ -244,14 +244,15 @@ def collect(
     todo = [j for j in range(manifest.shards) if not _complete(root, manifest, j)]
     missing = sum(_shard_len(manifest, j) for j in todo)
     _check_disk(root, env_config, missing)
+    done = manifest.episodes - missing
+    # initial: a resumed collection's rate and time left count only the episodes run now.
     with tqdm(
         total=manifest.episodes,
+        initial=done,
         desc=f"collecting {setting.name} ({pusher})",
         unit="ep",
         disable=not progress,
     ) as bar:
-        done = manifest.episodes - missing
-        bar.update(done)
         if is_pool(workers):
             shards = _shards_on_pool(
                 workers, manifest, todo, (env_config, policy, TRAIN, base_seed)

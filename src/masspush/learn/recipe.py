@@ -12,12 +12,17 @@ TP is predictor-1 with policy-1, TP+ is predictor-final with policy-M [paper, Se
 Every stage writes its result into the run directory and is skipped when it is there, and
 every stage resumes inside itself (collections by shard, training from checkpoints), so a
 killed `masspush train` continues where it stopped when run again.
+
+The last two stages (the final stage) may be resized on a finished run: a run resumed with
+another `final_episodes` or `final_finetune` grows (or cuts) data-final and trains
+predictor-final again; everything before stays.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import shutil
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
@@ -44,9 +49,32 @@ PREDICTOR = replace(FAST, features="relative")
 """Training of predictor-0: our shipped RP recipe (docs/notebook)."""
 FINETUNE = replace(FAST, features="relative", steps=5_000, lr=1e-3)
 """Each fine-tuning of the predictor on a policy's rollouts [ours]."""
+FINAL_FINETUNE = replace(FINETUNE, steps=20_000)
+"""The fine-tuning of TP+ on the final policy's rollouts [ours: with 4x the episodes, 20k
+steps gained 0.4 points over 5k in 2link-0.1-1 (docs/notebook/2026-12-01-arm-speed.md)]."""
+FINAL_FACTOR = 4
+"""TP+'s deterministic-policy episodes per random episode of predictor-0 [ours]: with the
+paper's first sizes (16k, 32k) that is as many as its RP+ had (64k, 128k; paper-details.md)."""
+FINAL_FIELDS = ("final_episodes", "final_finetune")
+"""The final stage's sizes: changing them on a run redoes only its final stage."""
 
 # Random-policy episodes for the first predictor [paper-details.md]: 16k (2 links), 32k (3).
 FIRST_EPISODES = {2: 16_000, 3: 32_000}
+
+
+def default_first_episodes(n_links: int) -> int:
+    return FIRST_EPISODES.get(n_links, 16_000 * (n_links - 1))
+
+
+def recorded_final(state: dict[str, Any], n_links: int) -> dict[str, Any]:
+    """The final stage's sizes (episodes, fine-tuning config) a run's state records. Runs
+    made before the record collected first_episodes (or their final_episodes) and
+    fine-tuned with their `finetune` config."""
+    if "final" in state:
+        return state["final"]
+    config = state["config"]
+    first = config["first_episodes"] or default_first_episodes(n_links)
+    return {"episodes": config["final_episodes"] or first, "finetune": config["finetune"]}
 
 
 @dataclass(frozen=True)
@@ -60,10 +88,12 @@ class RecipeConfig:
     iteration_episodes: int | None = None
     """Fresh policy rollouts per meta-iteration; None: half of first_episodes [ours]."""
     final_episodes: int | None = None
-    """Deterministic-policy rollouts for TP+; None: first_episodes [ours]."""
+    """Deterministic-policy rollouts for TP+; None: 4 x first_episodes (`FINAL_FACTOR`), as
+    many as the paper's RP+ had [ours]."""
     policy: PolicyConfig = field(default_factory=PolicyConfig)
     predictor: TrainConfig = PREDICTOR
     finetune: TrainConfig = FINETUNE
+    final_finetune: TrainConfig = FINAL_FINETUNE
     eval_episodes: int = 800
     """Fresh episodes for the error after each meta-iteration [paper: 800]."""
     seed: int = 0
@@ -80,8 +110,9 @@ class RecipeConfig:
             raise ValueError(f"eval_episodes must be >= 1, got {self.eval_episodes}")
 
     def episodes(self, n_links: int) -> tuple[int, int, int]:
-        first = self.first_episodes or FIRST_EPISODES.get(n_links, 16_000 * (n_links - 1))
-        return first, self.iteration_episodes or first // 2, self.final_episodes or first
+        first = self.first_episodes or default_first_episodes(n_links)
+        final = self.final_episodes or FINAL_FACTOR * first
+        return first, self.iteration_episodes or first // 2, final
 
 
 class Recipe:
@@ -108,18 +139,49 @@ class Recipe:
 
     # --- state ------------------------------------------------------------------------
     def _state(self) -> dict[str, Any]:
-        if self.state_path.exists():
-            state = json.loads(self.state_path.read_text())
-            ours = self._identity()
-            if state["config"] != ours:
-                differ = sorted(_differences(state["config"], ours))
-                raise ValueError(
-                    f"{self.dir} holds a run with another setting, pusher or config "
-                    f"({', '.join(differ)}); use another --out directory, or the run's own "
-                    "options"
-                )
-            return state
-        return {"config": self._identity(), "timings": {}, "history": []}
+        ours = self._identity()
+        if not self.state_path.exists():
+            return {"config": ours, "final": self._final(), "timings": {}, "history": []}
+        state = json.loads(self.state_path.read_text())
+        differ = sorted(
+            name
+            for name in _differences(state["config"], ours)
+            if name.split(".")[0] not in FINAL_FIELDS
+        )
+        if differ:
+            raise ValueError(
+                f"{self.dir} holds a run with another setting, pusher or config "
+                f"({', '.join(differ)}); use another --out directory, or the run's own "
+                "options"
+            )
+        recorded = recorded_final(state, self.setting.n_links)
+        if recorded != self._final():
+            self._redo_final(state, recorded)
+        state["config"], state["final"] = ours, self._final()
+        return state
+
+    def _final(self) -> dict[str, Any]:
+        """The final stage's sizes as they are run (defaults resolved)."""
+        episodes = self.config.episodes(self.setting.n_links)[2]
+        return {"episodes": episodes, "finetune": asdict(self.config.final_finetune)}
+
+    def _redo_final(self, state: dict[str, Any], recorded: dict[str, Any]) -> None:
+        """Forget the final stage done at other sizes; data-final is kept to be grown or cut
+        (its episodes stay those of its seeds), predictor-final is trained again."""
+        new = self._final()
+        self.log(
+            f"[{self.setting.name}] the final stage was run with {recorded['episodes']} "
+            f"episodes and {recorded['finetune']['steps']} steps; redoing it with "
+            f"{new['episodes']} and {new['finetune']['steps']}"
+        )
+        timings = state["timings"]
+        if "data-final" in timings:
+            # The kept episodes' time counts towards the grown collection's.
+            state.setdefault("carried", {})["data-final"] = timings.pop("data-final")
+        for name in ("predictor-final", "evaluate-final"):
+            timings.pop(name, None)
+        state["history"] = [h for h in state["history"] if h["stage"] != "predictor-final"]
+        shutil.rmtree(self.predictor("final").parent, ignore_errors=True)
 
     def _identity(self) -> dict[str, Any]:
         identity = json.loads(
@@ -147,7 +209,8 @@ class Recipe:
         self.log(f"[{self.setting.name}] {name} ...")
         t0 = time.perf_counter()
         run()
-        state["timings"][name] = round(time.perf_counter() - t0, 1)
+        carried = state.get("carried", {}).pop(name, 0.0)
+        state["timings"][name] = round(time.perf_counter() - t0 + carried, 1)
         self._save(state)
         self.log(f"[{self.setting.name}] {name} done in {state['timings'][name]:.0f} s")
 
@@ -196,14 +259,17 @@ class Recipe:
                 ),
             )
             self._stage(state, f"evaluate-{i}", lambda i=i: self._evaluate(state, i))
+        # resize: a final stage redone at a smaller size cuts the collection down.
         self._stage(
-            state, "data-final", lambda: self._collect("data-final", final, self._learned(m), m + 1)
+            state,
+            "data-final",
+            lambda: self._collect("data-final", final, self._learned(m), m + 1, resize=True),
         )
         self._stage(
             state,
             "predictor-final",
             lambda: self._train_predictor(
-                "final", "data-final", cfg.finetune, self.predictor(m), "learned", m
+                "final", "data-final", cfg.final_finetune, self.predictor(m), "learned", m
             ),
         )
         self._stage(state, "evaluate-final", lambda: self._evaluate(state, "final"))
@@ -213,7 +279,7 @@ class Recipe:
         policy = self.config.policy
         return LearnedPolicy(self.policy(i), policy.algo, deterministic, self.pusher, policy.runs)
 
-    def _collect(self, name: str, episodes: int, policy, stream: int) -> None:
+    def _collect(self, name: str, episodes: int, policy, stream: int, resize: bool = False) -> None:
         collect(
             self.setting,
             self.dir / name,
@@ -223,6 +289,7 @@ class Recipe:
             base_seed=1000 * self.config.seed + stream,
             progress=self.progress,
             workers=self.workers,
+            resize=resize,
         )
 
     def _train_policy(self, i: int) -> None:

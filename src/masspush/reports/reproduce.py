@@ -23,7 +23,7 @@ from typing import Any
 
 from masspush.cluster.pool import check_address, open_pool
 from masspush.learn.predictor import FAST, load_model
-from masspush.learn.recipe import Recipe, RecipeConfig
+from masspush.learn.recipe import Recipe, RecipeConfig, recorded_final
 from masspush.models import ship, shipped_file
 from masspush.reports.baselines import (
     PAPER_TABLE,
@@ -205,11 +205,7 @@ def collect_rows(settings: Sequence[str], pushers: dict[str, str], root=".") -> 
         if row["constant_floor"] is None and by_stage:
             row["constant_floor"] = next(iter(by_stage.values()))["constant_floor"]
         config = (state or {}).get("config", {})
-        row["recipe"] = (
-            f"{config['meta_iterations']} x {config['policy']['steps'] / 1000:g}k PPO"
-            if config
-            else None
-        )
+        row["recipe"] = recipe_summary(state, setting) if config else None
         row["train_minutes"] = (
             round(sum(state["timings"].values()) / 60, 1) if state and row["tp+"] else None
         )
@@ -296,8 +292,7 @@ def timings_markdown(settings: Sequence[str], pushers: dict[str, str], root=".")
         minutes = dict.fromkeys(STAGE_GROUPS, 0.0)
         for stage, seconds in state["timings"].items():
             minutes[stage_group(stage)] += seconds / 60
-        config = state["config"]
-        recipe = f"{config['meta_iterations']} x {config['policy']['steps'] / 1000:g}k PPO"
+        recipe = recipe_summary(state, setting)
         cells = " | ".join(f"{m:.1f}" for m in minutes.values())
         lines.append(f"| {setting} | {recipe} | {cells} | {sum(minutes.values()):.1f} |")
     return "\n".join(lines)
@@ -318,6 +313,16 @@ def write_csv(rows: list[dict], path: Path) -> None:
         writer = csv.DictWriter(f, fieldnames=keys, extrasaction="ignore")
         writer.writeheader()
         writer.writerows(rows)
+
+
+def recipe_summary(state: dict[str, Any], setting: str) -> str:
+    """A run's sizes in a few words: meta-iterations x PPO pushes, TP+'s episodes."""
+    config = state["config"]
+    final = recorded_final(state, get_setting(setting).n_links)["episodes"]
+    return (
+        f"{config['meta_iterations']} x {config['policy']['steps'] / 1000:g}k PPO, "
+        f"TP+ on {final / 1000:g}k"
+    )
 
 
 def plot_meta_iterations(settings, pushers, root, path: Path) -> None:
