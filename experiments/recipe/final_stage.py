@@ -1,14 +1,14 @@
 """The recipe's last stage at other sizes: does TP+ gain from more of the final policy's data?
 
-The recipe's TP+ is predictor-M fine-tuned (`FINETUNE`: 5k Adam steps) on `final_episodes`
-rollouts of the deterministic policy-M (default: as many as predictor-0's random episodes).
-This script collects `--extra` more of those rollouts beside a finished run (in
-`<run>/data-final-extra`, resumable, seeds of their own), fine-tunes predictor-M on
-data-final plus the first `--use` of them with `--steps` steps, and scores it on the recipe's
-evaluation episodes (seed of the run) and on `--fresh-seed` ones, beside the run's TP+:
+The recipe's TP+ is predictor-M fine-tuned on `final_episodes` rollouts of the deterministic
+policy-M (docs/training.md). This script collects `--extra` more of those rollouts beside a
+finished run (in `<run>/data-final-extra`, resumable, seeds of their own), fine-tunes
+predictor-M on data-final (its first `--final`) plus the first `--use` of them with
+`--steps` steps, and scores each on the recipe's evaluation episodes (the run's seed) and on
+`--fresh-seed` ones, beside the run's TP+:
 
     python experiments/recipe/final_stage.py --run runs/2link-0.1-1-kuka-train \\
-        --extra 48000 --use 0,16000,48000 --steps 5000,20000
+        --final 16000 --extra 112000 --use 0,16000,48000,112000 --steps 5000,20000,40000
 """
 
 from __future__ import annotations
@@ -43,6 +43,7 @@ def ints(name: str, text: str) -> list[int]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--run", required=True, help="a finished recipe's run directory")
+    parser.add_argument("--final", type=int, help="use the first this many of data-final")
     parser.add_argument("--extra", type=int, default=48_000, help="extra final rollouts")
     parser.add_argument("--use", default="0,16000,48000", help="extra rollouts used, a list")
     parser.add_argument("--steps", default="5000,20000", help="fine-tuning steps, a list")
@@ -60,7 +61,9 @@ def main(argv: list[str] | None = None) -> int:
             raise ValueError("--use must not exceed --extra; --steps and --eval-episodes >= 1")
         if "predictor-final" not in state["timings"]:
             raise ValueError(f"{run} has not finished its recipe")
-        _, final = load_dataset(run / "data-final")
+        if args.final is not None and args.final < 2:
+            raise ValueError(f"--final must be >= 2, got {args.final}")
+        _, final = load_dataset(run / "data-final", limit=args.final)
     except (OSError, KeyError, ValueError) as err:
         sys.exit(f"error: {' '.join(str(err).split())}")
 
@@ -72,8 +75,15 @@ def main(argv: list[str] | None = None) -> int:
                 base_seed=1000 * config["seed"] + EXTRA_STREAM)  # fmt: skip
         extra = load_dataset(extra_dir)[1]
     start = run / f"predictor-{m}" / "predictor.pt"
-    meta = json.loads((run / "predictor-final" / "config.json").read_text())["meta"]
-    rows = [("run's TP+", len(final), config["finetune"]["steps"], run / "predictor-final")]
+    # predictor-M's record names its policy as TP+'s does; a redone final stage may be absent.
+    meta = json.loads((run / f"predictor-{m}" / "config.json").read_text())["meta"]
+    meta["recipe_stage"] = "final-stage experiment"
+    tp_plus = run / "predictor-final"
+    rows = []
+    if (tp_plus / "predictor.pt").exists():
+        record = json.loads((tp_plus / "config.json").read_text())
+        trained_on = record["meta"]["dataset_episodes"]
+        rows.append(("run's TP+", trained_on, record["train"]["steps"], tp_plus))
     for use in uses:
         data = (
             Episodes.concatenate([final, extra.select(extra.index < use)])
@@ -81,7 +91,7 @@ def main(argv: list[str] | None = None) -> int:
             else final
         )
         for n in steps:
-            out = run / f"final-stage/extra{use}-steps{n}"
+            out = run / f"final-stage/final{len(final)}-extra{use}-steps{n}"
             train = replace(FINETUNE, steps=n, eval_every=n, checkpoint_every=n)
             meta_here = {**meta, "policy_file": f"../../policy-{m}/policy.zip",
                          "dataset_episodes": len(data)}  # fmt: skip

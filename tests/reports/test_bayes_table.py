@@ -47,6 +47,11 @@ def test_measurements_are_cached_and_the_table_built_from_them(tmp_path, monkeyp
     assert calls[before:] == [("2link-1-10", "bayes", 8), ("2link-1-10", "bayes-random", 8),
                               ("2link-1-10", "tp+", 8)]  # fmt: skip
     assert (tmp_path / "results" / "bayes.md").read_text().count("| 2link-1-10 |") == 1
+    # Measuring another setting keeps this one's cached row, in the paper's order.
+    text = bayes_table(["2link-0.1-1"], 8, root=tmp_path, tp_episodes=9)
+    assert calls[-1][0] == "2link-0.1-1" and "| 2link-1-10 |" in text
+    assert text.index("| 2link-0.1-1 |") < text.index("| 2link-1-10 |")
+    assert "3link" not in text  # nothing cached, not asked: no row
 
 
 def test_table_only_reports_what_is_missing(tmp_path):

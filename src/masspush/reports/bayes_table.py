@@ -197,21 +197,25 @@ def bayes_table(
 ) -> str:
     """Measure what is missing (unless told not to), then write results/bayes.md. With TP+
     among the models, TP+ is measured twice: on `tp_episodes` (Table 1's figure and its
-    coverage) and on the filter's `episodes` (the paired comparison)."""
+    coverage) and on the filter's `episodes` (the paired comparison). The table also keeps
+    the cached rows of the settings not asked for, so that measuring one setting does not
+    drop the others from it."""
     rows = []
-    for setting in settings:
+    for setting in dict.fromkeys([*paper_settings("all"), *settings]):
+        asked = setting in settings
         row: dict[str, Any] = {"setting": setting}
         runs = [(m, tp_episodes if m == "tp+" else episodes, "") for m in models]
         if "tp+" in models:
             runs.append(("tp+", episodes, PAIRED))
         for model, n, suffix in runs:
             path = cache_path(root, setting, model, suffix)
-            if measure_missing:
+            if measure_missing and asked:
                 row[model + suffix] = measure(setting, model, n, root, suffix=suffix,
                                               workers=workers)  # fmt: skip
             elif path.exists():
                 row[model + suffix] = json.loads(path.read_text())
-        rows.append(row)
+        if asked or len(row) > 1:
+            rows.append(row)
     text = table_markdown(rows)
     out = Path(root) / "results" / "bayes.md"
     out.parent.mkdir(parents=True, exist_ok=True)
