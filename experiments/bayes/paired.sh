@@ -6,7 +6,7 @@
 # Resumable: a setting whose two files exist is skipped; rerun after a kill.
 #   SETTINGS="2link-0.1-1 2link-0.1-10" EPISODES=300 experiments/bayes/paired.sh
 set -euo pipefail
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/../.."  # the repository root
 source .venv/bin/activate
 mkdir -p results/paired
 n=${EPISODES:-100}

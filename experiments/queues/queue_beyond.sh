@@ -2,7 +2,7 @@
 # The measurements of docs/notebook "Sim-to-real" and "The Bayesian estimator", one after
 # the other (each resumes or reuses what is done): rerun after a kill.
 set -euo pipefail
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/../.."  # the repository root
 source .venv/bin/activate
 mkdir -p logs
 while pgrep -f "masspush train" > /dev/null; do sleep 20; done  # one CPU job at a time

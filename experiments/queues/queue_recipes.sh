@@ -2,9 +2,11 @@
 # The recipe runs of docs/notebook ("TP and TP+"), one after the other: run in parallel
 # they oversubscribe the two cores (a predictor trained 7x slower beside another run).
 # Each line is resumable: rerun this script after a kill. The reduced recipes are what
-# fitted in one session's budget; docs/notebook says which setting got what.
+# fitted in one session's budget; docs/notebook says which setting got what. They predate
+# the larger final stage of 2026-12-03: to remake their TP+ as shipped, add --final-steps 5000
+# (and, where a line gives none, --final-episodes as many as data-0's).
 set -euo pipefail
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/../.."  # the repository root
 source .venv/bin/activate
 mkdir -p logs
 while pgrep -f "masspush train" > /dev/null; do sleep 20; done  # one run at a time
