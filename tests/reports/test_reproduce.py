@@ -69,7 +69,7 @@ def test_the_table_outlives_the_run_directories(tmp_path):
     shutil.rmtree(tmp_path / "runs")
     row = reproduce.collect_rows(names, pushers, tmp_path)[0]
     # A run from before the final stage's record took TP+ on first_episodes' worth (16k).
-    assert row["tp+"] == 9.5 and row["recipe"] == "1 x 1k PPO, TP+ on 16k"
+    assert row["tp+"] == 9.5 and row["recipe"] == "1 x 1k PPO, TP+ on 16k, 5k steps"
     reproduce.write_outputs(names, pushers, root=tmp_path)
     assert (tmp_path / "results" / "table1.md").read_text() == first
     # A setting with neither (a run from before the records) keeps its last row, marked.

@@ -316,12 +316,13 @@ def write_csv(rows: list[dict], path: Path) -> None:
 
 
 def recipe_summary(state: dict[str, Any], setting: str) -> str:
-    """A run's sizes in a few words: meta-iterations x PPO pushes, TP+'s episodes."""
+    """A run's sizes in a few words: meta-iterations x PPO pushes, TP+'s episodes and
+    fine-tuning steps."""
     config = state["config"]
-    final = recorded_final(state, get_setting(setting).n_links)["episodes"]
+    final = recorded_final(state, get_setting(setting).n_links)
     return (
         f"{config['meta_iterations']} x {config['policy']['steps'] / 1000:g}k PPO, "
-        f"TP+ on {final / 1000:g}k"
+        f"TP+ on {final['episodes'] / 1000:g}k, {final['finetune']['steps'] / 1000:g}k steps"
     )
 
 
