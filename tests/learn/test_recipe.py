@@ -10,7 +10,7 @@ from masspush.evaluate import EvaluateConfig
 from masspush.learn import recipe as train_module
 from masspush.learn.policy import PolicyConfig
 from masspush.learn.predictor import ModelMismatchError, load_model
-from masspush.learn.recipe import FINETUNE, PREDICTOR, Recipe, RecipeConfig
+from masspush.learn.recipe import FINAL_FINETUNE, FINETUNE, PREDICTOR, Recipe, RecipeConfig
 from masspush.models import evaluate_model
 from masspush.reports.reproduce import collect_rows, ship_recipe, table_markdown, write_outputs
 from masspush.settings import get_setting
@@ -108,11 +108,20 @@ def test_a_short_recipe_resumes_after_interruption_and_beats_the_floor(tmp_path,
     assert [h["stage"] for h in state["history"]] == stages
     assert state["final"] == {"episodes": 300, "finetune": asdict(bigger.final_finetune)}
     assert json.loads((run / "predictor-final" / "config.json").read_text())["train"]["steps"] == 60
+    # Resumed without final sizes, the run keeps the ones it recorded.
+    plain = replace(bigger, final_episodes=None, final_finetune=None)
+    assert Recipe(SETTING, "stiff", run, plain, progress=False).run()["final"] == state["final"]
+    assert calls.count("data-final") == 2
 
 
-def test_a_run_made_before_final_finetune_redoes_its_final_stage_only_when_it_differs(tmp_path):
-    old_config = replace(TINY, final_episodes=None)
-    recipe = Recipe(SETTING, "stiff", tmp_path, old_config, log=lambda _: None)
+def test_a_runs_final_stage_is_kept_unless_other_sizes_are_given(tmp_path):
+    plain = replace(TINY, final_episodes=None, final_finetune=None)
+    quiet = {"log": lambda _: None}
+    # A new run takes the defaults: 4x data-0's episodes, FINAL_FINETUNE.
+    fresh = Recipe(SETTING, "stiff", tmp_path / "new", plain, **quiet)._state()
+    assert fresh["final"] == {"episodes": 4 * 1500, "finetune": asdict(FINAL_FINETUNE)}
+
+    recipe = Recipe(SETTING, "stiff", tmp_path, plain, **quiet)
     old = recipe._identity()
     del old["final_finetune"]  # as runs made before it recorded their config
     done = {"data-final": 30.0, "predictor-final": 5.0, "evaluate-final": 1.0, "policy-2": 9.0}
@@ -123,21 +132,23 @@ def test_a_run_made_before_final_finetune_redoes_its_final_stage_only_when_it_di
             json.dumps({"config": old, "timings": dict(done), "history": list(history)})
         )
         (tmp_path / "predictor-final").mkdir(exist_ok=True)
-        return Recipe(SETTING, "stiff", tmp_path, config, log=lambda _: None)._state()
+        return Recipe(SETTING, "stiff", tmp_path, config, **quiet)._state()
 
-    # Its final stage took first_episodes with the `finetune` config: the same sizes, kept.
-    same = replace(old_config, final_episodes=1500, final_finetune=TINY.finetune)
-    kept = state_of(same)
-    assert kept["timings"] == done and kept["history"] == history
-    assert kept["final"] == {"episodes": 1500, "finetune": asdict(TINY.finetune)}
-    # Today's default (4x the episodes) redoes it, keeping data-final's time to add to.
-    redone = state_of(old_config)
-    assert redone["final"]["episodes"] == 4 * 1500
+    # Made before the record: first_episodes' worth with the `finetune` config. Resumed
+    # without final sizes, or with those same sizes, it keeps its final stage.
+    made = {"episodes": 1500, "finetune": asdict(TINY.finetune)}
+    for config in (plain, replace(plain, final_episodes=1500, final_finetune=TINY.finetune)):
+        kept = state_of(config)
+        assert kept["timings"] == done and kept["history"] == history
+        assert kept["final"] == made and (tmp_path / "predictor-final").exists()
+    # Other sizes redo it, keeping data-final's time to add to.
+    redone = state_of(replace(plain, final_episodes=6000))
+    assert redone["final"] == {**made, "episodes": 6000}
     assert redone["timings"] == {"policy-2": 9.0} and redone["carried"] == {"data-final": 30.0}
     assert redone["history"] == history[:1] and not (tmp_path / "predictor-final").exists()
     # Anything else that differs is still refused.
     with pytest.raises(ValueError, match=r"\(meta_iterations\)"):
-        state_of(replace(old_config, meta_iterations=3))
+        state_of(replace(plain, meta_iterations=3))
 
 
 def test_a_run_directory_refuses_another_config(tmp_path):

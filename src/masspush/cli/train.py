@@ -62,8 +62,9 @@ def _recipe_options(p: argparse.ArgumentParser) -> None:
         "--final-steps",
         type=int,
         default=argparse.SUPPRESS,
-        help="Gradient steps of TP+'s fine-tuning on the final policy's rollouts; changing "
-        f"it (or --final-episodes) on a run redoes only TP+ (default: {FINAL_FINETUNE.steps})",
+        help="Gradient steps of TP+'s fine-tuning on the final policy's rollouts; given "
+        "otherwise than a run recorded (as --final-episodes), it redoes only TP+ (default: "
+        f"the run's own; {FINAL_FINETUNE.steps} for a new run)",
     )
 
 

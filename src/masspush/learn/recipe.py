@@ -13,9 +13,10 @@ Every stage writes its result into the run directory and is skipped when it is t
 every stage resumes inside itself (collections by shard, training from checkpoints), so a
 killed `masspush train` continues where it stopped when run again.
 
-The last two stages (the final stage) may be resized on a finished run: a run resumed with
-another `final_episodes` or `final_finetune` grows (or cuts) data-final and trains
-predictor-final again; everything before stays.
+The last two stages (the final stage) may be resized on a run: resumed with a
+`final_episodes` or `final_finetune` other than it recorded, it grows (or cuts) data-final
+and trains predictor-final again; everything before stays. Resumed without them, a run keeps
+the final stage it recorded (runs made before the record: the one they were made with).
 """
 
 from __future__ import annotations
@@ -56,7 +57,8 @@ FINAL_FACTOR = 4
 """TP+'s deterministic-policy episodes per random episode of predictor-0 [ours]: with the
 paper's first sizes (16k, 32k) that is as many as its RP+ had (64k, 128k; paper-details.md)."""
 FINAL_FIELDS = ("final_episodes", "final_finetune")
-"""The final stage's sizes: changing them on a run redoes only its final stage."""
+"""The final stage's sizes: given otherwise than a run recorded, they redo only its final
+stage."""
 
 # Random-policy episodes for the first predictor [paper-details.md]: 16k (2 links), 32k (3).
 FIRST_EPISODES = {2: 16_000, 3: 32_000}
@@ -88,12 +90,13 @@ class RecipeConfig:
     iteration_episodes: int | None = None
     """Fresh policy rollouts per meta-iteration; None: half of first_episodes [ours]."""
     final_episodes: int | None = None
-    """Deterministic-policy rollouts for TP+; None: 4 x first_episodes (`FINAL_FACTOR`), as
-    many as the paper's RP+ had [ours]."""
+    """Deterministic-policy rollouts for TP+; None: a run's recorded number, for a new run 4 x
+    first_episodes (`FINAL_FACTOR`), as many as the paper's RP+ had [ours]."""
     policy: PolicyConfig = field(default_factory=PolicyConfig)
     predictor: TrainConfig = PREDICTOR
     finetune: TrainConfig = FINETUNE
-    final_finetune: TrainConfig = FINAL_FINETUNE
+    final_finetune: TrainConfig | None = None
+    """TP+'s fine-tuning; None: a run's recorded one, for a new run `FINAL_FINETUNE`."""
     eval_episodes: int = 800
     """Fresh episodes for the error after each meta-iteration [paper: 800]."""
     seed: int = 0
@@ -141,7 +144,7 @@ class Recipe:
     def _state(self) -> dict[str, Any]:
         ours = self._identity()
         if not self.state_path.exists():
-            return {"config": ours, "final": self._final(), "timings": {}, "history": []}
+            return {"config": ours, "final": self._final(None), "timings": {}, "history": []}
         state = json.loads(self.state_path.read_text())
         differ = sorted(
             name
@@ -155,20 +158,30 @@ class Recipe:
                 "options"
             )
         recorded = recorded_final(state, self.setting.n_links)
-        if recorded != self._final():
-            self._redo_final(state, recorded)
-        state["config"], state["final"] = ours, self._final()
+        final = self._final(recorded)
+        if recorded != final:
+            self._redo_final(state, recorded, final)
+        state["config"], state["final"] = ours, final
         return state
 
-    def _final(self) -> dict[str, Any]:
-        """The final stage's sizes as they are run (defaults resolved)."""
-        episodes = self.config.episodes(self.setting.n_links)[2]
-        return {"episodes": episodes, "finetune": asdict(self.config.final_finetune)}
+    def _final(self, recorded: dict[str, Any] | None) -> dict[str, Any]:
+        """The final stage's sizes to run: those given, else those `recorded`, else the
+        defaults."""
+        cfg = self.config
+        episodes = cfg.final_episodes or (
+            recorded["episodes"] if recorded else cfg.episodes(self.setting.n_links)[2]
+        )
+        if cfg.final_finetune is not None:
+            finetune = asdict(cfg.final_finetune)
+        else:
+            finetune = recorded["finetune"] if recorded else asdict(FINAL_FINETUNE)
+        return {"episodes": episodes, "finetune": finetune}
 
-    def _redo_final(self, state: dict[str, Any], recorded: dict[str, Any]) -> None:
+    def _redo_final(
+        self, state: dict[str, Any], recorded: dict[str, Any], new: dict[str, Any]
+    ) -> None:
         """Forget the final stage done at other sizes; data-final is kept to be grown or cut
         (its episodes stay those of its seeds), predictor-final is trained again."""
-        new = self._final()
         self.log(
             f"[{self.setting.name}] the final stage was run with {recorded['episodes']} "
             f"episodes and {recorded['finetune']['steps']} steps; redoing it with "
@@ -234,7 +247,9 @@ class Recipe:
         state = self._state()
         self._save(state)
         cfg, n = self.config, self.setting.n_links
-        first, per_iteration, final = cfg.episodes(n)
+        first, per_iteration, _ = cfg.episodes(n)
+        final = state["final"]["episodes"]
+        final_finetune = TrainConfig(**state["final"]["finetune"])
         m = cfg.meta_iterations
 
         self._stage(state, "data-0", lambda: self._collect("data-0", first, "random", 0))
@@ -269,7 +284,7 @@ class Recipe:
             state,
             "predictor-final",
             lambda: self._train_predictor(
-                "final", "data-final", cfg.final_finetune, self.predictor(m), "learned", m
+                "final", "data-final", final_finetune, self.predictor(m), "learned", m
             ),
         )
         self._stage(state, "evaluate-final", lambda: self._evaluate(state, "final"))
