@@ -273,13 +273,16 @@ def make_vec_env(
         return VecMonitor(vec)
 
     vec_cls = WatchedSubprocVecEnv if n_envs > 1 else DummyVecEnv
-    # Workers start from a fork server, not a fork of this process: forking a process with
-    # threads (MuJoCo's batch pool, torch's, Ray's) once left workers stuck in a futex wait
-    # (docs/notebook/2026-12-01-arm-speed.md). The server imports the environment's code
-    # once, so that each worker forked from it does not import it again.
-    multiprocessing.get_context("forkserver").set_forkserver_preload([__name__])
     if is_pool(workers) and hasattr(workers, "vec_env"):
         vec_cls = workers.vec_env
+    vec_env_kwargs = None
+    if vec_cls is WatchedSubprocVecEnv:
+        # Workers start from a fork server, not a fork of this process: forking a process
+        # with threads (MuJoCo's batch pool, torch's, Ray's) once left workers stuck in a
+        # futex wait (docs/notebook/2026-12-01-arm-speed.md). The server imports the
+        # environment's code once, so that each worker forked from it does not import it.
+        multiprocessing.get_context("forkserver").set_forkserver_preload([__name__])
+        vec_env_kwargs = {"start_method": "forkserver"}
     return sb3_make_vec_env(
         PushPolicyEnv,
         n_envs=n_envs,
@@ -293,7 +296,7 @@ def make_vec_env(
             "reward": reward,
             "loss_reward": loss_reward,
         },
-        vec_env_kwargs={"start_method": "forkserver"} if vec_cls is WatchedSubprocVecEnv else None,
+        vec_env_kwargs=vec_env_kwargs,
     )
 
 
