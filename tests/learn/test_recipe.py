@@ -146,6 +146,8 @@ def test_a_runs_final_stage_is_kept_unless_other_sizes_are_given(tmp_path):
     assert redone["final"] == {**made, "episodes": 6000}
     assert redone["timings"] == {"policy-2": 9.0} and redone["carried"] == {"data-final": 30.0}
     assert redone["history"] == history[:1] and not (tmp_path / "predictor-final").exists()
+    # A cut keeps the time of the episodes it keeps.
+    assert state_of(replace(plain, final_episodes=500))["carried"] == {"data-final": 10.0}
     # Anything else that differs is still refused.
     with pytest.raises(ValueError, match=r"\(meta_iterations\)"):
         state_of(replace(plain, meta_iterations=3))

@@ -189,8 +189,12 @@ class Recipe:
         )
         timings = state["timings"]
         if "data-final" in timings:
-            # The kept episodes' time counts towards the grown collection's.
-            state.setdefault("carried", {})["data-final"] = timings.pop("data-final")
+            # The kept episodes' time counts towards the grown collection's; a cut keeps
+            # only its share of it.
+            kept = min(1.0, new["episodes"] / recorded["episodes"])
+            state.setdefault("carried", {})["data-final"] = round(
+                timings.pop("data-final") * kept, 1
+            )
         for name in ("predictor-final", "evaluate-final"):
             timings.pop(name, None)
         state["history"] = [h for h in state["history"] if h["stage"] != "predictor-final"]
