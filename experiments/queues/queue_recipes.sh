@@ -4,7 +4,7 @@
 # Each line is resumable: rerun this script after a kill. The reduced recipes are what
 # fitted in one session's budget; docs/notebook says which setting got what. They predate
 # the larger final stage of 2026-12-03: to remake their TP+ as shipped, add --final-steps 5000
-# (and, where a line gives none, --final-episodes as many as data-0's).
+# --final-lr 0.001 (and, where a line gives none, --final-episodes as many as data-0's).
 set -euo pipefail
 cd "$(dirname "$0")/../.."  # the repository root
 source .venv/bin/activate

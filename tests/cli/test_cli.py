@@ -1,10 +1,11 @@
 import json
 import subprocess
 import sys
+from dataclasses import replace
 
 import pytest
 
-from masspush.cli import main
+from masspush.cli import build_parser, main
 
 
 def run_cli(*args: str) -> subprocess.CompletedProcess:
@@ -122,3 +123,22 @@ def test_every_command_that_scales_out_takes_ray_and_checks_its_address(command,
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0
     assert f"masspush {command[0]}: error: ray must be auto, local, ray://HOST:PORT" in err
+
+
+def test_train_builds_tp_plus_fine_tuning_from_the_final_options(capsys):
+    from masspush.cli.train import _recipe
+    from masspush.learn.recipe import FINAL_FINETUNE
+
+    def recipe(*options):
+        return _recipe(build_parser().parse_args(["train", "--setting", "2link-1-10", *options]))
+
+    # Without them the run's recorded fine-tuning stands (None until the run is read).
+    assert recipe().final_finetune is None
+    assert recipe("--final-steps", "5000").final_finetune == replace(FINAL_FINETUNE, steps=5000)
+    tuned = recipe("--final-lr", "0.001", "--final-steps", "40000").final_finetune
+    assert (tuned.lr, tuned.steps, tuned.optimizer) == (1e-3, 40000, FINAL_FINETUNE.optimizer)
+    # Bad values name the option the user typed, before any work.
+    assert main(["train", "--setting", "2link-1-10", "--final-steps", "0"]) == 2
+    assert "--final-steps must be >= 1" in capsys.readouterr().err
+    assert main(["train", "--setting", "2link-1-10", "--final-lr", "20"]) == 2
+    assert "--final-lr must be in (0, 10)" in capsys.readouterr().err

@@ -127,12 +127,14 @@ def test_a_runs_final_stage_is_kept_unless_other_sizes_are_given(tmp_path):
     done = {"data-final": 30.0, "predictor-final": 5.0, "evaluate-final": 1.0, "policy-2": 9.0}
     history = [{"stage": "predictor-2"}, {"stage": "predictor-final"}]
 
+    logs = []
+
     def state_of(config):
         recipe.state_path.write_text(
             json.dumps({"config": old, "timings": dict(done), "history": list(history)})
         )
         (tmp_path / "predictor-final").mkdir(exist_ok=True)
-        return Recipe(SETTING, "stiff", tmp_path, config, **quiet)._state()
+        return Recipe(SETTING, "stiff", tmp_path, config, log=logs.append)._state()
 
     # Made before the record: first_episodes' worth with the `finetune` config. Resumed
     # without final sizes, or with those same sizes, it keeps its final stage.
@@ -146,6 +148,11 @@ def test_a_runs_final_stage_is_kept_unless_other_sizes_are_given(tmp_path):
     assert redone["final"] == {**made, "episodes": 6000}
     assert redone["timings"] == {"policy-2": 9.0} and redone["carried"] == {"data-final": 30.0}
     assert redone["history"] == history[:1] and not (tmp_path / "predictor-final").exists()
+    lr = TINY.finetune.lr
+    assert logs[-1].endswith(
+        f"run with 1500 episodes, {TINY.finetune.steps} steps at lr {lr:g}; "
+        f"redoing it with 6000 episodes, {TINY.finetune.steps} steps at lr {lr:g}"
+    )
     # A cut keeps the time of the episodes it keeps.
     assert state_of(replace(plain, final_episodes=500))["carried"] == {"data-final": 10.0}
     # Anything else that differs is still refused.

@@ -66,6 +66,13 @@ def _recipe_options(p: argparse.ArgumentParser) -> None:
         "otherwise than a run recorded (as --final-episodes), it redoes only TP+ (default: "
         f"the run's own; {FINAL_FINETUNE.steps} for a new run)",
     )
+    p.add_argument(
+        "--final-lr",
+        type=float,
+        default=argparse.SUPPRESS,
+        help="Learning rate of TP+'s fine-tuning, likewise (default: the run's own; "
+        f"{FINAL_FINETUNE.lr:g} for a new run)",
+    )
 
 
 def _recipe(args: argparse.Namespace):
@@ -75,11 +82,13 @@ def _recipe(args: argparse.Namespace):
     from masspush.learn.recipe import FINAL_FINETUNE, RecipeConfig
 
     policy = build(PolicyConfig, args, prefix="policy_")
-    if "final_steps" not in args:
+    given = {k: getattr(args, f"final_{k}") for k in ("steps", "lr") if f"final_{k}" in args}
+    if not given:
         return build(RecipeConfig, args, policy=policy)
-    if args.final_steps < 1:
-        raise ValueError(f"--final-steps must be >= 1, got {args.final_steps}")
-    final = replace(FINAL_FINETUNE, steps=args.final_steps)
+    try:  # what is not given is a new run's: the recorded config is not known here
+        final = replace(FINAL_FINETUNE, **given)
+    except ValueError as err:  # TrainConfig names the field; the user typed the option
+        raise ValueError(f"--final-{err}") from None
     return build(RecipeConfig, args, policy=policy, final_finetune=final)
 
 

@@ -8,7 +8,7 @@ from masspush._exports import lazy, names
 
 EXPORTS = {
     "predictor": ("FAST", "MassPredictor", "TrainConfig", "load_model", "save_model",
-                  "train_predictor"),
+                  "step_inputs", "train_predictor"),
     "features": ("history_dim", "history_features", "paper_reward"),
     "policy": ("LearnedPolicy", "PolicyConfig", "PushPolicyEnv", "model_policy", "train_policy"),
     "vec_env": ("BatchPushVecEnv",),

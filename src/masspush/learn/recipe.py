@@ -50,9 +50,11 @@ PREDICTOR = replace(FAST, features="relative")
 """Training of predictor-0: our shipped RP recipe (docs/notebook)."""
 FINETUNE = replace(FAST, features="relative", steps=5_000, lr=1e-3)
 """Each fine-tuning of the predictor on a policy's rollouts [ours]."""
-FINAL_FINETUNE = replace(FINETUNE, steps=20_000)
+FINAL_FINETUNE = replace(FINETUNE, steps=20_000, lr=PREDICTOR.lr)
 """The fine-tuning of TP+ on the final policy's rollouts [ours: with 4x the episodes, 20k
-steps gained 0.4 points over 5k in 2link-0.1-1 (docs/notebook/2026-12-01-arm-speed.md)]."""
+steps gained 0.4 points over 5k in 2link-0.1-1; predictor-0's learning rate, 3e-3, gained
+0.56 over 1e-3 in 3link-0.1-1 and 0.13 in 2link-0.1-1 on fresh episodes
+(docs/notebook/2026-12-01-arm-speed.md)]."""
 FINAL_FACTOR = 4
 """TP+'s deterministic-policy episodes per random episode of predictor-0 [ours]: with the
 paper's first sizes (16k, 32k) that is as many as its RP+ had (64k, 128k; paper-details.md)."""
@@ -182,10 +184,14 @@ class Recipe:
     ) -> None:
         """Forget the final stage done at other sizes; data-final is kept to be grown or cut
         (its episodes stay those of its seeds), predictor-final is trained again."""
+
+        def sizes(final: dict[str, Any]) -> str:
+            tune = final["finetune"]
+            return f"{final['episodes']} episodes, {tune['steps']} steps at lr {tune['lr']:g}"
+
         self.log(
-            f"[{self.setting.name}] the final stage was run with {recorded['episodes']} "
-            f"episodes and {recorded['finetune']['steps']} steps; redoing it with "
-            f"{new['episodes']} and {new['finetune']['steps']}"
+            f"[{self.setting.name}] the final stage was run with {sizes(recorded)}; "
+            f"redoing it with {sizes(new)}"
         )
         timings = state["timings"]
         if "data-final" in timings:

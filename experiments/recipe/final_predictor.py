@@ -1,0 +1,134 @@
+"""How TP+'s predictor is trained on a run's data-final: from scratch or from predictor-M, at
+which learning rate, and whether a wider network than the paper's does better.
+
+Holds out the same 5 % of data-final as the recipe's predictor-final (`TrainConfig`'s
+split, seed 0), so its validation figures compare with the recipe's; prints the error on
+them and on 6,000 training episodes every `--every` steps. Adam, batches of 256, the
+learning rate halved at 1/4, 1/2 and 3/4 of the steps (as `TrainConfig`).
+
+    python experiments/recipe/final_predictor.py --run runs/3link-0.1-1-kuka-train \
+        --steps 40000 --lr 3e-3 [--init 6] [--extra 5,6] [--wide 256]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+
+from masspush.data import load_dataset
+from masspush.learn import MassPredictor, load_model, step_inputs
+from masspush.metrics import percentage_error
+
+
+class WidePredictor(MassPredictor):
+    """The paper's layout with every layer `width` wide, two LSTM layers, and a hidden layer
+    before each output: the probe for the predictor's capacity."""
+
+    def __init__(self, n_links: int, q0_dim: int, step_dim: int, width: int):
+        super().__init__(n_links, q0_dim, step_dim, "relative")
+        self.width = width
+        self.embed = nn.Sequential(nn.Linear(step_dim, width), nn.ReLU(), nn.Linear(width, width))
+        self.lstm = nn.LSTM(width, width, num_layers=2, batch_first=True)
+        self.init_h = nn.Linear(q0_dim, 2 * width)
+        self.init_c = nn.Linear(q0_dim, 2 * width)
+        self.head = nn.Sequential(nn.Linear(width, width), nn.ReLU(), nn.Linear(width, n_links))
+
+    def features(self, q0: torch.Tensor, steps: torch.Tensor) -> torch.Tensor:
+        q0 = (q0 - self.q0_mean) / self.q0_std
+        steps = (steps - self.step_mean) / self.step_std
+
+        def state(layer: nn.Linear) -> torch.Tensor:
+            x = torch.relu(layer(q0)).view(len(q0), 2, self.width)
+            return x.transpose(0, 1).contiguous()
+
+        out, _ = self.lstm(torch.relu(self.embed(steps)), (state(self.init_h), state(self.init_c)))
+        return out
+
+
+def inputs(directory: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    _, episodes = load_dataset(directory)
+    good = episodes.select(episodes.ok)
+    q0, steps = step_inputs(good, "relative")
+    return q0, steps, good.mass_distribution.astype(np.float32)
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--run", type=Path, required=True, help="a recipe's run directory")
+    p.add_argument("--steps", type=int, default=20_000)
+    p.add_argument("--lr", type=float, default=3e-3)
+    p.add_argument("--init", help="start from predictor-<INIT> of the run (default: scratch)")
+    p.add_argument("--extra", default="", help="data-<i> to train on as well, e.g. 5,6")
+    p.add_argument("--wide", type=int, default=0, help="a WidePredictor this wide")
+    p.add_argument("--every", type=int, default=5_000)
+    args = p.parse_args()
+    extra = [s for s in args.extra.split(",") if s]
+    dirs = [args.run / "data-final", *(args.run / f"data-{i}" for i in extra)]
+    for d in dirs:
+        if not (d / "manifest.json").exists():
+            sys.exit(f"no dataset at {d}")
+    init = args.run / f"predictor-{args.init}" / "predictor.pt" if args.init else None
+    if init is not None and not init.exists():
+        sys.exit(f"no predictor at {init}")
+    if args.init and args.wide:
+        sys.exit("--init starts from a recipe's predictor, which is not wide")
+    if args.steps < 1 or args.every < 1 or not 0 < args.lr < 1:
+        sys.exit("--steps and --every must be >= 1, --lr in (0, 1)")
+
+    parts = [inputs(d) for d in dirs]
+    n_final = len(parts[0][0])
+    order = np.random.default_rng(0).permutation(n_final)  # train_predictor's split
+    n_val = round(0.05 * n_final)
+    val = order[:n_val]
+    train = np.concatenate([order[n_val:], np.arange(n_final, sum(len(q) for q, _, _ in parts))])
+    q0, steps, target = (torch.as_tensor(np.concatenate(x)) for x in zip(*parts, strict=True))
+
+    torch.manual_seed(0)
+    n_links, q0_dim, step_dim = target.shape[1], q0.shape[1], steps.shape[2]
+    if args.wide:
+        model: MassPredictor = WidePredictor(n_links, q0_dim, step_dim, args.wide)
+    else:
+        model = MassPredictor(n_links, q0_dim, step_dim, "relative")
+    if init is not None:
+        model.load_state_dict(load_model(init)[0].state_dict())
+    else:
+        model.set_normaliser(q0[train].numpy(), steps[train].numpy())
+    print(
+        f"{len(train)} training episodes, {n_val} held out; "
+        f"{sum(x.numel() for x in model.parameters()):,} parameters"
+    )
+    optimiser = torch.optim.Adam(model.parameters(), lr=args.lr)
+    rng = np.random.default_rng(1)
+    seen = torch.as_tensor(train[:6000])
+    started = time.perf_counter()
+    for step in range(1, args.steps + 1):
+        for group in optimiser.param_groups:
+            group["lr"] = args.lr * 0.5 ** min(3, (4 * (step - 1)) // args.steps)
+        batch = torch.as_tensor(rng.choice(train, size=256))
+        loss = ((model(q0[batch], steps[batch]) - target[batch, None, :]) ** 2).mean()
+        optimiser.zero_grad()
+        loss.backward()
+        optimiser.step()
+        if step % args.every == 0 or step == args.steps:
+            model.eval()
+            with torch.no_grad():
+                errors = [
+                    percentage_error(model(q0[i], steps[i])[:, -1].numpy(), target[i].numpy())
+                    for i in (torch.as_tensor(val), seen)
+                ]
+            model.train()
+            print(
+                f"step {step:>6}  {time.perf_counter() - started:5.0f} s  "
+                f"held out {errors[0]:.2f}  training {errors[1]:.2f}",
+                flush=True,
+            )
+
+
+if __name__ == "__main__":
+    main()
