@@ -7,7 +7,7 @@ them and on 6,000 training episodes every `--every` steps. Adam, batches of 256,
 learning rate halved at 1/4, 1/2 and 3/4 of the steps (as `TrainConfig`).
 
     python experiments/recipe/final_predictor.py --run runs/3link-0.1-1-kuka-train \
-        --steps 40000 --lr 3e-3 [--init 6] [--extra 5,6] [--wide 256]
+        --steps 40000 --lr 3e-3 [--init 6] [--extra 5,6] [--wide 256] [--seeds 0,1,2]
 """
 
 from __future__ import annotations
@@ -58,6 +58,57 @@ def inputs(directory: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return q0, steps, good.mass_distribution.astype(np.float32)
 
 
+def fit(
+    args: argparse.Namespace, data: tuple, val: np.ndarray, train: np.ndarray, seed: int
+) -> np.ndarray:
+    """Train one predictor; print its errors as it goes; return its held-out predictions
+    at its best checkpoint (as the recipe keeps the best)."""
+    q0, steps, target = data
+    init = args.run / f"predictor-{args.init}" / "predictor.pt" if args.init else None
+    torch.manual_seed(seed)
+    n_links, q0_dim, step_dim = target.shape[1], q0.shape[1], steps.shape[2]
+    if args.wide:
+        model: MassPredictor = WidePredictor(n_links, q0_dim, step_dim, args.wide)
+    else:
+        model = MassPredictor(n_links, q0_dim, step_dim, "relative")
+    if init is not None:
+        model.load_state_dict(load_model(init)[0].state_dict())
+    else:
+        model.set_normaliser(q0[train].numpy(), steps[train].numpy())
+    print(
+        f"seed {seed}: {len(train)} training episodes, {len(val)} held out; "
+        f"{sum(x.numel() for x in model.parameters()):,} parameters"
+    )
+    optimiser = torch.optim.Adam(model.parameters(), lr=args.lr)
+    rng = np.random.default_rng(seed + 1)
+    held, seen = torch.as_tensor(val), torch.as_tensor(train[:6000])
+    best, best_pred = np.inf, None
+    started = time.perf_counter()
+    for step in range(1, args.steps + 1):
+        for group in optimiser.param_groups:
+            group["lr"] = args.lr * 0.5 ** min(3, (4 * (step - 1)) // args.steps)
+        batch = torch.as_tensor(rng.choice(train, size=256))
+        loss = ((model(q0[batch], steps[batch]) - target[batch, None, :]) ** 2).mean()
+        optimiser.zero_grad()
+        loss.backward()
+        optimiser.step()
+        if step % args.every == 0 or step == args.steps:
+            model.eval()
+            with torch.no_grad():
+                pred = model(q0[held], steps[held])[:, -1].numpy()
+                fitted = model(q0[seen], steps[seen])[:, -1].numpy()
+            model.train()
+            error = percentage_error(pred, target[held].numpy())
+            if error < best:
+                best, best_pred = error, pred
+            print(
+                f"step {step:>6}  {time.perf_counter() - started:5.0f} s  held out "
+                f"{error:.2f}  training {percentage_error(fitted, target[seen].numpy()):.2f}",
+                flush=True,
+            )
+    return best_pred
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--run", type=Path, required=True, help="a recipe's run directory")
@@ -67,6 +118,10 @@ def main() -> None:
     p.add_argument("--extra", default="", help="data-<i> to train on as well, e.g. 5,6")
     p.add_argument("--wide", type=int, default=0, help="a WidePredictor this wide")
     p.add_argument("--every", type=int, default=5_000)
+    p.add_argument(
+        "--seeds", default="0", help="train one predictor per seed; with several, also "
+        "score the mean of their held-out estimates (an ensemble)"
+    )  # fmt: skip
     args = p.parse_args()
     extra = [s for s in args.extra.split(",") if s]
     dirs = [args.run / "data-final", *(args.run / f"data-{i}" for i in extra)]
@@ -80,6 +135,10 @@ def main() -> None:
         sys.exit("--init starts from a recipe's predictor, which is not wide")
     if args.steps < 1 or args.every < 1 or not 0 < args.lr < 1:
         sys.exit("--steps and --every must be >= 1, --lr in (0, 1)")
+    try:
+        seeds = [int(s) for s in args.seeds.split(",")]
+    except ValueError:
+        sys.exit(f"--seeds must be integers separated by commas, got {args.seeds!r}")
 
     parts = [inputs(d) for d in dirs]
     n_final = len(parts[0][0])
@@ -87,47 +146,15 @@ def main() -> None:
     n_val = round(0.05 * n_final)
     val = order[:n_val]
     train = np.concatenate([order[n_val:], np.arange(n_final, sum(len(q) for q, _, _ in parts))])
-    q0, steps, target = (torch.as_tensor(np.concatenate(x)) for x in zip(*parts, strict=True))
-
-    torch.manual_seed(0)
-    n_links, q0_dim, step_dim = target.shape[1], q0.shape[1], steps.shape[2]
-    if args.wide:
-        model: MassPredictor = WidePredictor(n_links, q0_dim, step_dim, args.wide)
-    else:
-        model = MassPredictor(n_links, q0_dim, step_dim, "relative")
-    if init is not None:
-        model.load_state_dict(load_model(init)[0].state_dict())
-    else:
-        model.set_normaliser(q0[train].numpy(), steps[train].numpy())
-    print(
-        f"{len(train)} training episodes, {n_val} held out; "
-        f"{sum(x.numel() for x in model.parameters()):,} parameters"
-    )
-    optimiser = torch.optim.Adam(model.parameters(), lr=args.lr)
-    rng = np.random.default_rng(1)
-    seen = torch.as_tensor(train[:6000])
-    started = time.perf_counter()
-    for step in range(1, args.steps + 1):
-        for group in optimiser.param_groups:
-            group["lr"] = args.lr * 0.5 ** min(3, (4 * (step - 1)) // args.steps)
-        batch = torch.as_tensor(rng.choice(train, size=256))
-        loss = ((model(q0[batch], steps[batch]) - target[batch, None, :]) ** 2).mean()
-        optimiser.zero_grad()
-        loss.backward()
-        optimiser.step()
-        if step % args.every == 0 or step == args.steps:
-            model.eval()
-            with torch.no_grad():
-                errors = [
-                    percentage_error(model(q0[i], steps[i])[:, -1].numpy(), target[i].numpy())
-                    for i in (torch.as_tensor(val), seen)
-                ]
-            model.train()
-            print(
-                f"step {step:>6}  {time.perf_counter() - started:5.0f} s  "
-                f"held out {errors[0]:.2f}  training {errors[1]:.2f}",
-                flush=True,
-            )
+    data = tuple(torch.as_tensor(np.concatenate(x)) for x in zip(*parts, strict=True))
+    preds = [fit(args, data, val, train, seed) for seed in seeds]
+    if len(preds) > 1:
+        truth = data[2][torch.as_tensor(val)].numpy()
+        singles = ", ".join(f"{percentage_error(x, truth):.2f}" for x in preds)
+        print(
+            f"ensemble of {len(preds)}: held out {percentage_error(np.mean(preds, 0), truth):.2f} "
+            f"(each at its best: {singles})"
+        )
 
 
 if __name__ == "__main__":
