@@ -22,7 +22,7 @@ import torch
 from torch import nn
 
 from masspush.data import load_dataset
-from masspush.learn import MassPredictor, load_model, step_inputs
+from masspush.learn import MassPredictor, TrainConfig, load_model, step_inputs, validation_split
 from masspush.metrics import percentage_error
 
 
@@ -59,12 +59,13 @@ def inputs(directory: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def fit(
-    args: argparse.Namespace, data: tuple, val: np.ndarray, train: np.ndarray, seed: int
+    args: argparse.Namespace, init: Path | None, data: tuple, split: tuple, seed: int
 ) -> np.ndarray:
     """Train one predictor; print its errors as it goes; return its held-out predictions
     at its best checkpoint (as the recipe keeps the best)."""
     q0, steps, target = data
-    init = args.run / f"predictor-{args.init}" / "predictor.pt" if args.init else None
+    val, train = split
+    schedule = TrainConfig(optimizer="adam", steps=args.steps, batch_size=256, lr=args.lr)
     torch.manual_seed(seed)
     n_links, q0_dim, step_dim = target.shape[1], q0.shape[1], steps.shape[2]
     if args.wide:
@@ -86,8 +87,8 @@ def fit(
     started = time.perf_counter()
     for step in range(1, args.steps + 1):
         for group in optimiser.param_groups:
-            group["lr"] = args.lr * 0.5 ** min(3, (4 * (step - 1)) // args.steps)
-        batch = torch.as_tensor(rng.choice(train, size=256))
+            group["lr"] = schedule.lr_at(step - 1)
+        batch = torch.as_tensor(rng.choice(train, size=schedule.batch_size))
         loss = ((model(q0[batch], steps[batch]) - target[batch, None, :]) ** 2).mean()
         optimiser.zero_grad()
         loss.backward()
@@ -142,12 +143,10 @@ def main() -> None:
 
     parts = [inputs(d) for d in dirs]
     n_final = len(parts[0][0])
-    order = np.random.default_rng(0).permutation(n_final)  # train_predictor's split
-    n_val = round(0.05 * n_final)
-    val = order[:n_val]
-    train = np.concatenate([order[n_val:], np.arange(n_final, sum(len(q) for q, _, _ in parts))])
+    val, train = validation_split(n_final, TrainConfig())  # the recipe's predictor-final's
+    train = np.concatenate([train, np.arange(n_final, sum(len(q) for q, _, _ in parts))])
     data = tuple(torch.as_tensor(np.concatenate(x)) for x in zip(*parts, strict=True))
-    preds = [fit(args, data, val, train, seed) for seed in seeds]
+    preds = [fit(args, init, data, (val, train), seed) for seed in seeds]
     if len(preds) > 1:
         truth = data[2][torch.as_tensor(val)].numpy()
         singles = ", ".join(f"{percentage_error(x, truth):.2f}" for x in preds)

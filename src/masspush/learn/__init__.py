@@ -8,7 +8,8 @@ from masspush._exports import lazy, names
 
 EXPORTS = {
     "predictor": ("FAST", "MassPredictor", "TrainConfig", "load_model", "save_model",
-                  "step_inputs", "train_predictor"),
+                  "step_inputs", "train_predictor",
+                  "validation_split"),
     "features": ("history_dim", "history_features", "paper_reward"),
     "policy": ("LearnedPolicy", "PolicyConfig", "PushPolicyEnv", "model_policy", "train_policy"),
     "vec_env": ("BatchPushVecEnv",),

@@ -302,6 +302,14 @@ def predictor_digest(model: MassPredictor) -> str:
     return digest.hexdigest()
 
 
+def validation_split(n_episodes: int, config: TrainConfig) -> tuple[np.ndarray, np.ndarray]:
+    """(held-out, training) indices of a dataset's usable episodes, as `train_predictor`
+    splits them: a predictor's validation error is measured on the held-out ones."""
+    order = np.random.default_rng(config.seed).permutation(n_episodes)
+    n_val = round(config.validation_fraction * n_episodes)
+    return order[:n_val], order[n_val:]
+
+
 def train_predictor(
     episodes: Episodes,
     run_dir: str | os.PathLike,
@@ -325,9 +333,7 @@ def train_predictor(
         raise ValueError(f"only {len(good)} usable episodes; collect more data")
     q0, steps = step_inputs(good, config.features)
     target = good.mass_distribution.astype(np.float32)
-    order = np.random.default_rng(config.seed).permutation(len(good))
-    n_val = round(config.validation_fraction * len(good))
-    val_idx, train_idx = order[:n_val], order[n_val:]
+    val_idx, train_idx = validation_split(len(good), config)
 
     torch.manual_seed(config.seed)
     n_links = target.shape[1]
