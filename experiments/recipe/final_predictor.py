@@ -146,14 +146,17 @@ def main() -> None:
     val, train = validation_split(n_final, TrainConfig())  # the recipe's predictor-final's
     train = np.concatenate([train, np.arange(n_final, sum(len(q) for q, _, _ in parts))])
     data = tuple(torch.as_tensor(np.concatenate(x)) for x in zip(*parts, strict=True))
-    preds = [fit(args, init, data, (val, train), seed) for seed in seeds]
-    if len(preds) > 1:
-        truth = data[2][torch.as_tensor(val)].numpy()
-        singles = ", ".join(f"{percentage_error(x, truth):.2f}" for x in preds)
-        print(
-            f"ensemble of {len(preds)}: held out {percentage_error(np.mean(preds, 0), truth):.2f} "
-            f"(each at its best: {singles})"
-        )
+    truth = data[2][torch.as_tensor(val)].numpy()
+    preds: list[np.ndarray] = []
+    for seed in seeds:
+        preds.append(fit(args, init, data, (val, train), seed))
+        if len(preds) > 1:  # every prefix, so one run says what each further member buys
+            singles = ", ".join(f"{percentage_error(x, truth):.2f}" for x in preds)
+            print(
+                f"ensemble of {len(preds)}: held out "
+                f"{percentage_error(np.mean(preds, 0), truth):.2f} (each at its best: {singles})",
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

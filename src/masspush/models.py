@@ -23,7 +23,7 @@ from masspush.config import check_match, check_output
 from masspush.evaluate import Estimator, EvalResult, EvaluateConfig, evaluate
 from masspush.learn.estimator import PredictorEstimator
 from masspush.learn.policy import model_policy, strip_policy
-from masspush.learn.predictor import MassPredictor, load_model, save_model
+from masspush.learn.predictor import Predictor, load_model, save_model
 from masspush.learn.uncertainty import (
     HeadConfig,
     StaleHeadError,
@@ -64,7 +64,7 @@ def resolve_model(model: str | os.PathLike, setting: str) -> Path:
 
 def model_and_policy(
     model: str | os.PathLike, setting: str
-) -> tuple[MassPredictor, dict[str, Any], Any]:
+) -> tuple[Predictor, dict[str, Any], Any]:
     """A model (shipped name or path) for `setting`: its predictor, metadata and the
     policy it was trained with (`masspush.learn.policy.model_policy`)."""
     path = resolve_model(model, setting)

@@ -142,3 +142,8 @@ def test_train_builds_tp_plus_fine_tuning_from_the_final_options(capsys):
     assert "--final-steps must be >= 1" in capsys.readouterr().err
     assert main(["train", "--setting", "2link-1-10", "--final-lr", "20"]) == 2
     assert "--final-lr must be in (0, 10)" in capsys.readouterr().err
+    # TP+ as several predictors averaged: none given, the run's own; a bad count, refused.
+    assert recipe().final_members is None
+    assert recipe("--final-members", "3").final_members == 3
+    assert main(["train", "--setting", "2link-1-10", "--final-members", "0"]) == 2
+    assert "final_members must be in 1..16, got 0" in capsys.readouterr().err

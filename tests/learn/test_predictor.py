@@ -1,4 +1,5 @@
 import re
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -9,10 +10,13 @@ from masspush.data.rollout import EVAL, TRAIN, RandomPolicy, run_batch
 from masspush.learn.predictor import (
     MassPredictor,
     ModelMismatchError,
+    PredictorEnsemble,
     TrainConfig,
     load_model,
+    predictor_digest,
     save_model,
     step_inputs,
+    train_ensemble,
     train_predictor,
 )
 from masspush.metrics import all_metrics
@@ -128,6 +132,78 @@ def test_model_files_round_trip_and_refuse_other_settings(episodes, tmp_path):
     path.write_bytes(b"not a model")
     with pytest.raises(ValueError, match="not a readable model file"):
         load_model(path)
+
+
+def _random_members(count: int, n_links: int = 3) -> list[MassPredictor]:
+    members = []
+    for seed in range(count):
+        torch.manual_seed(seed)
+        members.append(MassPredictor(n_links, 8, 12, "relative"))
+    return members
+
+
+def test_an_ensemble_averages_its_members_estimates():
+    members = _random_members(3)
+    ensemble = PredictorEnsemble(members)
+    q0, steps = torch.randn(5, 8), torch.randn(5, 2, 12)
+    with torch.no_grad():
+        out = ensemble(q0, steps)
+        singles = torch.stack([m(q0, steps) for m in members])
+        features = ensemble.features(q0, steps)
+        log = ensemble.log_estimate(features)
+    torch.testing.assert_close(out, singles.mean(0))
+    assert not torch.allclose(singles[0], singles[1])  # the members differ
+    assert features.shape == (5, 2, 3 * 64)  # each member's LSTM output, side by side
+    torch.testing.assert_close(log, torch.log(out))
+    assert (ensemble.n_links, ensemble.features_kind) == (3, "relative")
+
+
+def test_an_ensemble_refuses_one_member_and_members_of_other_inputs():
+    with pytest.raises(ValueError, match="at least 2 predictors, got 1"):
+        PredictorEnsemble(_random_members(1))
+    other = MassPredictor(3, 8, 12, "paper")
+    with pytest.raises(ValueError, match="must read the same inputs"):
+        PredictorEnsemble([*_random_members(1), other])
+
+
+def test_ensemble_files_round_trip_and_a_newer_version_is_refused(tmp_path):
+    ensemble = PredictorEnsemble(_random_members(2))
+    path = tmp_path / "e.pt"
+    save_model(path, ensemble, {"setting": {"name": "3link-0.1-1"}, "pusher": "kuka"})
+    loaded, meta = load_model(path, setting="3link-0.1-1")
+    assert meta["pusher"] == "kuka"
+    assert isinstance(loaded, PredictorEnsemble) and len(loaded.members) == 2
+    assert predictor_digest(loaded) == predictor_digest(ensemble)
+    assert torch.load(path, weights_only=True)["version"] == 2
+    single = tmp_path / "s.pt"
+    save_model(single, _random_members(1)[0], {})
+    assert torch.load(single, weights_only=True)["version"] == 1  # as files made before
+    payload = torch.load(path, weights_only=True)
+    torch.save({**payload, "version": 3}, path)
+    with pytest.raises(ValueError, match="version 3, this masspush reads 1 and 2"):
+        load_model(path)
+
+
+@pytest.mark.slow
+def test_train_ensemble_trains_members_apart_and_saves_their_average(episodes, tmp_path):
+    small = episodes.select(np.arange(len(episodes)) < 300)
+    config = TrainConfig(optimizer="adam", steps=40, batch_size=16, lr=1e-3, eval_every=20,
+                         features="relative", seed=5)  # fmt: skip
+    ensemble, summary = train_ensemble(small, tmp_path / "e", config, 3, {"x": 1}, False)
+    seeds = [m["train_config"]["seed"] for m in summary["members"]]
+    assert seeds == [5, 6, 7]
+    loaded, meta = load_model(tmp_path / "e" / "predictor.pt")
+    assert meta["x"] == 1 and len(loaded.members) == 3
+    good = small.select(small.ok)
+    np.testing.assert_allclose(loaded.predict(good), ensemble.predict(good), atol=1e-6)
+    alone, _ = train_predictor(small, tmp_path / "alone", replace(config, seed=6), progress=False)
+    np.testing.assert_allclose(  # member 1 is the predictor trained alone with seed 6
+        ensemble.members[1].predict(good), alone.predict(good), atol=1e-6
+    )
+    with pytest.raises(ValueError, match="from one predictor, not an ensemble"):
+        train_predictor(small, tmp_path / "f", config, progress=False, init=ensemble)
+    with pytest.raises(ValueError, match="at least 2 predictors"):
+        train_ensemble(small, tmp_path / "g", config, 1)
 
 
 def test_a_batch_larger_than_the_memory_is_refused_with_the_estimate():

@@ -9,10 +9,16 @@ from masspush.data.dataset import load_dataset
 from masspush.evaluate import EvaluateConfig
 from masspush.learn import recipe as train_module
 from masspush.learn.policy import PolicyConfig
-from masspush.learn.predictor import ModelMismatchError, load_model
+from masspush.learn.predictor import ModelMismatchError, PredictorEnsemble, load_model
 from masspush.learn.recipe import FINAL_FINETUNE, FINETUNE, PREDICTOR, Recipe, RecipeConfig
 from masspush.models import evaluate_model
-from masspush.reports.reproduce import collect_rows, ship_recipe, table_markdown, write_outputs
+from masspush.reports.reproduce import (
+    collect_rows,
+    recipe_summary,
+    ship_recipe,
+    table_markdown,
+    write_outputs,
+)
 from masspush.settings import get_setting
 
 SETTING = get_setting("2link-0.1-1")
@@ -106,12 +112,27 @@ def test_a_short_recipe_resumes_after_interruption_and_beats_the_floor(tmp_path,
     assert calls == ["data-0", "data-1", "data-2", "data-final", "data-final"]
     assert load_dataset(run / "data-final")[0].episodes == 300
     assert [h["stage"] for h in state["history"]] == stages
-    assert state["final"] == {"episodes": 300, "finetune": asdict(bigger.final_finetune)}
+    assert state["final"] == {
+        "episodes": 300, "finetune": asdict(bigger.final_finetune), "members": 1
+    }  # fmt: skip
     assert json.loads((run / "predictor-final" / "config.json").read_text())["train"]["steps"] == 60
     # Resumed without final sizes, the run keeps the ones it recorded.
     plain = replace(bigger, final_episodes=None, final_finetune=None)
     assert Recipe(SETTING, "stiff", run, plain, progress=False).run()["final"] == state["final"]
     assert calls.count("data-final") == 2
+
+    # TP+ as two predictors averaged: only predictor-final is trained again, twice, and
+    # ships and evaluates as any model.
+    state = Recipe(SETTING, "stiff", run, replace(plain, final_members=2), progress=False).run()
+    assert state["final"]["members"] == 2  # data-final was looked at, and found complete:
+    assert load_dataset(run / "data-final")[0].episodes == 300
+    assert [h["stage"] for h in state["history"]] == stages
+    assert {p.name for p in (run / "predictor-final").glob("member-*")} == {"member-0", "member-1"}
+    assert isinstance(load_model(run / "predictor-final" / "predictor.pt")[0], PredictorEnsemble)
+    ship_recipe(Recipe(SETTING, "stiff", run, plain, progress=False), root=tmp_path)
+    result = evaluate_model(EvaluateConfig(SETTING.name, "tp+", episodes=200)).to_dict()
+    assert result["mae"] == pytest.approx(state["history"][-1]["mae"])
+    assert "TP+ on 0.3k, 0.06k steps, 2 averaged" in recipe_summary(state, SETTING.name)
 
 
 def test_a_runs_final_stage_is_kept_unless_other_sizes_are_given(tmp_path):
@@ -119,7 +140,9 @@ def test_a_runs_final_stage_is_kept_unless_other_sizes_are_given(tmp_path):
     quiet = {"log": lambda _: None}
     # A new run takes the defaults: 4x data-0's episodes, FINAL_FINETUNE.
     fresh = Recipe(SETTING, "stiff", tmp_path / "new", plain, **quiet)._state()
-    assert fresh["final"] == {"episodes": 4 * 1500, "finetune": asdict(FINAL_FINETUNE)}
+    assert fresh["final"] == {
+        "episodes": 4 * 1500, "finetune": asdict(FINAL_FINETUNE), "members": 1
+    }  # fmt: skip
 
     recipe = Recipe(SETTING, "stiff", tmp_path, plain, **quiet)
     old = recipe._identity()
@@ -138,7 +161,7 @@ def test_a_runs_final_stage_is_kept_unless_other_sizes_are_given(tmp_path):
 
     # Made before the record: first_episodes' worth with the `finetune` config. Resumed
     # without final sizes, or with those same sizes, it keeps its final stage.
-    made = {"episodes": 1500, "finetune": asdict(TINY.finetune)}
+    made = {"episodes": 1500, "finetune": asdict(TINY.finetune), "members": 1}
     for config in (plain, replace(plain, final_episodes=1500, final_finetune=TINY.finetune)):
         kept = state_of(config)
         assert kept["timings"] == done and kept["history"] == history
@@ -155,6 +178,18 @@ def test_a_runs_final_stage_is_kept_unless_other_sizes_are_given(tmp_path):
     )
     # A cut keeps the time of the episodes it keeps.
     assert state_of(replace(plain, final_episodes=500))["carried"] == {"data-final": 10.0}
+    # More predictors averaged redo the training, all of data-final's time kept.
+    averaged = state_of(replace(plain, final_members=3))
+    assert averaged["final"] == {**made, "members": 3}
+    assert averaged["carried"] == {"data-final": 30.0}
+    assert logs[-1].endswith(f"at lr {lr:g}, 3 predictors averaged")
+    # A run that recorded its final stage before ensembles trained one predictor.
+    recipe.state_path.write_text(json.dumps({
+        "config": old, "timings": dict(done), "history": list(history),
+        "final": {"episodes": 1500, "finetune": asdict(TINY.finetune)},
+    }))  # fmt: skip
+    kept = Recipe(SETTING, "stiff", tmp_path, plain, log=logs.append)._state()
+    assert kept["final"] == made and kept["timings"] == done
     # Anything else that differs is still refused.
     with pytest.raises(ValueError, match=r"\(meta_iterations\)"):
         state_of(replace(plain, meta_iterations=3))
@@ -194,6 +229,9 @@ def test_bad_recipe_configs_are_refused():
         RecipeConfig(meta_iterations=0)
     with pytest.raises(ValueError, match="first_episodes"):
         RecipeConfig(first_episodes=1)
+    for members in (0, 17):
+        with pytest.raises(ValueError, match=f"final_members must be in 1..16, got {members}"):
+            RecipeConfig(final_members=members)
     assert RecipeConfig().episodes(2) == (16_000, 8_000, 64_000)
     assert RecipeConfig().episodes(3) == (32_000, 16_000, 128_000)
     assert np.isclose(TINY.policy.rollout_steps, 16)

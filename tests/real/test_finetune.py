@@ -112,6 +112,29 @@ def segmented_recording(path, segments: int = 3, episodes: int = 4):
 
 
 @pytest.mark.slow
+def test_an_ensembles_features_are_its_members_side_by_side(labelled_recording):
+    import copy
+
+    import torch
+
+    from masspush.learn.predictor import PredictorEnsemble
+
+    predictor = load_model(resolve_model("rp+", SETTING), SETTING)[0]
+    other = copy.deepcopy(predictor)
+    with torch.no_grad():
+        other.head.weight.add_(0.3 * torch.randn_like(other.head.weight))
+    ensemble = PredictorEnsemble([predictor, other])
+    episodes = read_recording(labelled_recording).to_episodes()
+    lstm = predictor_features(ensemble, episodes, "lstm")
+    np.testing.assert_array_equal(lstm[:, :64], predictor_features(predictor, episodes, "lstm"))
+    np.testing.assert_array_equal(lstm[:, 64:], predictor_features(other, episodes, "lstm"))
+    estimate = predictor_features(ensemble, episodes, "estimate")
+    means = (np.exp(predictor_features(predictor, episodes, "estimate"))
+             + np.exp(predictor_features(other, episodes, "estimate"))) / 2  # fmt: skip
+    np.testing.assert_allclose(estimate, np.log(means), atol=1e-5)
+
+
+@pytest.mark.slow
 def test_segment_features_average_what_each_run_estimated(tmp_path):
     predictor, runs = segmented_recording(tmp_path / "runs.jsonl")
     episodes = read_recording(tmp_path / "runs.jsonl").to_episodes()

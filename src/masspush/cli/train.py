@@ -46,7 +46,7 @@ def _baselines(args: argparse.Namespace) -> int:
 
 
 RECIPE_FIELDS = ("meta_iterations", "first_episodes", "iteration_episodes", "final_episodes",
-                 "eval_episodes", "seed")  # fmt: skip
+                 "final_members", "eval_episodes", "seed")  # fmt: skip
 
 
 def _recipe_options(p: argparse.ArgumentParser) -> None:

@@ -13,7 +13,7 @@ from masspush.config import EnvConfig
 from masspush.data.rollout import EVAL, Policy, run_episodes
 from masspush.evaluate import EstimatorRun
 from masspush.learn.policy import model_policy
-from masspush.learn.predictor import MassPredictor, load_model
+from masspush.learn.predictor import Predictor, load_model
 from masspush.learn.uncertainty import (
     PrecisionHead,
     StaleHeadError,
@@ -29,7 +29,7 @@ class PredictorEstimator:
     Dirichlet head (`masspush.learn.uncertainty`) the result also reports interval coverage."""
 
     def __init__(
-        self, predictor: MassPredictor, policy: Policy, pusher: str, name: str,
+        self, predictor: Predictor, policy: Policy, pusher: str, name: str,
         model_file: str | None = None, head: PrecisionHead | None = None,
     ):  # fmt: skip
         self.predictor, self.policy_impl, self.pusher = predictor, policy, pusher

@@ -17,7 +17,7 @@ import json
 import math
 import os
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +31,10 @@ from masspush.data.rollout import Episodes
 
 MODEL_FORMAT = "masspush-predictor"
 MODEL_VERSION = 1
+"""A file holding one predictor."""
+ENSEMBLE_VERSION = 2
+"""A file holding a `PredictorEnsemble` (a masspush that reads only version 1 refuses it by
+its version, with a clear message, instead of failing on its weights)."""
 
 
 class ModelMismatchError(MismatchError):
@@ -76,7 +80,40 @@ def step_inputs(episodes: Episodes, features: str = "paper") -> tuple[np.ndarray
     return q0.astype(np.float32), np.nan_to_num(steps).astype(np.float32)
 
 
-class MassPredictor(nn.Module):
+class Predictor(nn.Module):
+    """What reads an episode's history: its features after each push, and the mass
+    distribution they say (`MassPredictor`, or several averaged: `PredictorEnsemble`)."""
+
+    n_links: int
+    q0_dim: int
+    step_dim: int
+    features_kind: str
+
+    def features(self, q0: torch.Tensor, steps: torch.Tensor) -> torch.Tensor:
+        """(E, K, F) features after each push (what a Dirichlet head or a classifier reads)."""
+        raise NotImplementedError
+
+    def estimate(self, features: torch.Tensor) -> torch.Tensor:
+        """(.., n) the mass distribution that features (.., F) say."""
+        raise NotImplementedError
+
+    def log_estimate(self, features: torch.Tensor) -> torch.Tensor:
+        """(.., n) its logarithm, computed without underflow."""
+        raise NotImplementedError
+
+    def forward(self, q0: torch.Tensor, steps: torch.Tensor) -> torch.Tensor:
+        """(E, K, n) predicted mass distribution after each push."""
+        return self.estimate(self.features(q0, steps))
+
+    @torch.no_grad()
+    def predict(self, episodes: Episodes) -> np.ndarray:
+        """(E, K, n) predictions for recorded episodes (use [:, -1] for the final estimate)."""
+        self.eval()
+        q0, steps = step_inputs(episodes, self.features_kind)
+        return self(torch.as_tensor(q0), torch.as_tensor(steps)).numpy()
+
+
+class MassPredictor(Predictor):
     """The paper's predictor, with input normalisation built in."""
 
     def __init__(self, n_links: int, q0_dim: int, step_dim: int, features: str = "paper"):
@@ -107,16 +144,43 @@ class MassPredictor(nn.Module):
         out, _ = self.lstm(torch.relu(self.embed(steps)), (h0, c0))
         return out
 
-    def forward(self, q0: torch.Tensor, steps: torch.Tensor) -> torch.Tensor:
-        """(E, K, n) predicted mass distribution after each push."""
-        return torch.softmax(self.head(self.features(q0, steps)), dim=-1)
+    def estimate(self, features: torch.Tensor) -> torch.Tensor:
+        return torch.softmax(self.head(features), dim=-1)
 
-    @torch.no_grad()
-    def predict(self, episodes: Episodes) -> np.ndarray:
-        """(E, K, n) predictions for recorded episodes (use [:, -1] for the final estimate)."""
-        self.eval()
-        q0, steps = step_inputs(episodes, self.features_kind)
-        return self(torch.as_tensor(q0), torch.as_tensor(steps)).numpy()
+    def log_estimate(self, features: torch.Tensor) -> torch.Tensor:
+        return torch.log_softmax(self.head(features), dim=-1)
+
+
+class PredictorEnsemble(Predictor):
+    """Several predictors of the same inputs, trained apart, their estimates averaged: each
+    stops at about the same held-out error whatever its size or training, and their average
+    is below every one (docs/notebook/2026-12-01-arm-speed.md). Its features are the
+    members' side by side."""
+
+    def __init__(self, members: list[MassPredictor]):
+        super().__init__()
+        if len(members) < 2:
+            raise ValueError(f"an ensemble needs at least 2 predictors, got {len(members)}")
+        shape = {(m.n_links, m.q0_dim, m.step_dim, m.features_kind) for m in members}
+        if len(shape) > 1:
+            raise ValueError(f"an ensemble's predictors must read the same inputs, got {shape}")
+        ((self.n_links, self.q0_dim, self.step_dim, self.features_kind),) = shape
+        self.members = nn.ModuleList(members)
+
+    def features(self, q0: torch.Tensor, steps: torch.Tensor) -> torch.Tensor:
+        return torch.cat([m.features(q0, steps) for m in self.members], dim=-1)
+
+    def _parts(self, features: torch.Tensor) -> tuple[torch.Tensor, ...]:
+        return features.chunk(len(self.members), dim=-1)
+
+    def estimate(self, features: torch.Tensor) -> torch.Tensor:
+        parts = zip(self.members, self._parts(features), strict=True)
+        return torch.stack([m.estimate(x) for m, x in parts]).mean(0)
+
+    def log_estimate(self, features: torch.Tensor) -> torch.Tensor:
+        parts = zip(self.members, self._parts(features), strict=True)
+        logs = torch.stack([m.log_estimate(x) for m, x in parts])
+        return torch.logsumexp(logs, dim=0) - math.log(len(self.members))
 
 
 @dataclass(frozen=True)
@@ -226,17 +290,17 @@ def train_on_dataset(
     return out / "predictor.pt", summary
 
 
-def save_model(path: str | os.PathLike, model: MassPredictor, meta: dict[str, Any]) -> None:
+def save_model(path: str | os.PathLike, model: Predictor, meta: dict[str, Any]) -> None:
     """A self-describing model file: weights, architecture, and what produced it."""
+    arch = {"n_links": model.n_links, "q0_dim": model.q0_dim, "step_dim": model.step_dim,
+            "features": model.features_kind}  # fmt: skip
+    ensemble = isinstance(model, PredictorEnsemble)
+    if ensemble:
+        arch["members"] = len(model.members)
     payload = {
         "format": MODEL_FORMAT,
-        "version": MODEL_VERSION,
-        "arch": {
-            "n_links": model.n_links,
-            "q0_dim": model.q0_dim,
-            "step_dim": model.step_dim,
-            "features": model.features_kind,
-        },
+        "version": ENSEMBLE_VERSION if ensemble else MODEL_VERSION,
+        "arch": arch,
         "state_dict": model.state_dict(),
         "meta": meta,
     }
@@ -261,16 +325,17 @@ def read_torch_file(path: str | os.PathLike, what: str) -> Any:
 def load_model(
     path: str | os.PathLike, setting: str | None = None, pusher: str | None = None,
     allow_mismatch: bool = False, n_links: int | None = None,
-) -> tuple[MassPredictor, dict[str, Any]]:  # fmt: skip
-    """Load a predictor; refuse it for another setting or pusher than it was trained for
-    (unless `allow_mismatch`), and always for another number of links (`n_links`)."""
+) -> tuple[Predictor, dict[str, Any]]:  # fmt: skip
+    """Load a predictor (or an ensemble); refuse it for another setting or pusher than it
+    was trained for (unless `allow_mismatch`), and always for another number of links
+    (`n_links`)."""
     payload = read_torch_file(path, "model")
     if not isinstance(payload, dict) or payload.get("format") != MODEL_FORMAT:
         raise ValueError(f"{path} is not a masspush predictor")
-    if payload.get("version") != MODEL_VERSION:
+    if payload.get("version") not in (MODEL_VERSION, ENSEMBLE_VERSION):
         raise ValueError(
             f"{path} has model format version {payload.get('version')}, "
-            f"this masspush reads {MODEL_VERSION}"
+            f"this masspush reads {MODEL_VERSION} and {ENSEMBLE_VERSION}"
         )
     meta = payload["meta"]
     trained = meta.get("setting", {})
@@ -286,13 +351,19 @@ def load_model(
         )
     if n_links is not None:
         check_match("n_links", str(path), trained.get("n_links"), n_links, allowable=False)
-    model = MassPredictor(**payload["arch"])
+    arch = dict(payload["arch"])
+    members = arch.pop("members", 1)
+    model: Predictor = (
+        PredictorEnsemble([MassPredictor(**arch) for _ in range(members)])
+        if members > 1
+        else MassPredictor(**arch)
+    )
     model.load_state_dict(payload["state_dict"])
     model.eval()
     return model, meta
 
 
-def predictor_digest(model: MassPredictor) -> str:
+def predictor_digest(model: Predictor) -> str:
     """A fingerprint of the predictor's weights and normalisation (sha256, hex): what a
     Dirichlet head fitted on its features records, so that a head outlives no retraining."""
     digest = hashlib.sha256()
@@ -335,6 +406,8 @@ def train_predictor(
     target = good.mass_distribution.astype(np.float32)
     val_idx, train_idx = validation_split(len(good), config)
 
+    if init is not None and not isinstance(init, MassPredictor):
+        raise ValueError("fine-tuning starts from one predictor, not an ensemble")
     torch.manual_seed(config.seed)
     n_links = target.shape[1]
     model = MassPredictor(n_links, q0.shape[1], steps.shape[2], config.features)
@@ -438,6 +511,37 @@ def train_predictor(
     }
     save_model(run / "predictor.pt", model, {**(meta or {}), "training": summary})
     return model, summary
+
+
+def train_ensemble(
+    episodes: Episodes,
+    run_dir: str | os.PathLike,
+    config: TrainConfig,
+    members: int,
+    meta: dict[str, Any] | None = None,
+    progress: bool = True,
+    init: MassPredictor | None = None,
+) -> tuple[PredictorEnsemble, dict[str, Any]]:
+    """Train `members` predictors alike but for their seeds (config.seed + k: their initial
+    weights unless `init`, their batches and their held-out episodes), each in
+    `run_dir`/member-k (resumable as `train_predictor`), and save their average as
+    `run_dir`/predictor.pt."""
+    if members < 2:
+        raise ValueError(f"an ensemble needs at least 2 predictors, got {members}")
+    run, trained, summaries = Path(run_dir), [], []
+    for k in range(members):
+        if progress:
+            print(f"ensemble member {k + 1} of {members}", flush=True)
+        member, summary = train_predictor(
+            episodes, run / f"member-{k}", replace(config, seed=config.seed + k), meta,
+            progress, init,
+        )  # fmt: skip
+        trained.append(member)
+        summaries.append({key: v for key, v in summary.items() if key != "history"})
+    ensemble = PredictorEnsemble(trained)
+    summary = {"members": summaries, "train_config": asdict(config)}
+    save_model(run / "predictor.pt", ensemble, {**(meta or {}), "training": summary})
+    return ensemble, summary
 
 
 def _validation(model: MassPredictor, tensors: dict, idx: np.ndarray) -> dict[str, float]:

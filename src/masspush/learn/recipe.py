@@ -6,7 +6,8 @@
       data-i        fresh rollouts of policy-i (sampling its actions)
       predictor-i   predictor-(i-1) fine-tuned on data-i, then evaluated with policy-i
     data-final      rollouts of the deterministic policy-M
-    predictor-final predictor-M fine-tuned on data-final
+    predictor-final predictor-M fine-tuned on data-final (with `final_members` N > 1: N
+                    fine-tunings with seeds seed..seed+N-1, their estimates averaged)
 
 TP is predictor-1 with policy-1, TP+ is predictor-final with policy-M [paper, Sec. 4.1].
 Every stage writes its result into the run directory and is skipped when it is there, and
@@ -14,9 +15,10 @@ every stage resumes inside itself (collections by shard, training from checkpoin
 killed `masspush train` continues where it stopped when run again.
 
 The last two stages (the final stage) may be resized on a run: resumed with a
-`final_episodes` or `final_finetune` other than it recorded, it grows (or cuts) data-final
-and trains predictor-final again; everything before stays. Resumed without them, a run keeps
-the final stage it recorded (runs made before the record: the one they were made with).
+`final_episodes`, `final_finetune` or `final_members` other than it recorded, it grows (or
+cuts) data-final and trains predictor-final again; everything before stays. Resumed without
+them, a run keeps the final stage it recorded (runs made before the record: the one they
+were made with).
 """
 
 from __future__ import annotations
@@ -36,7 +38,13 @@ from masspush.evaluate import evaluate
 from masspush.learn.estimator import PredictorEstimator
 from masspush.learn.features import LOSS_REWARD
 from masspush.learn.policy import LearnedPolicy, PolicyConfig, train_policy
-from masspush.learn.predictor import FAST, TrainConfig, load_model, train_predictor
+from masspush.learn.predictor import (
+    FAST,
+    TrainConfig,
+    load_model,
+    train_ensemble,
+    train_predictor,
+)
 from masspush.settings import Setting
 from masspush.sim.pushers import pusher_kind
 
@@ -58,9 +66,13 @@ steps gained 0.4 points over 5k in 2link-0.1-1; predictor-0's learning rate, 3e-
 FINAL_FACTOR = 4
 """TP+'s deterministic-policy episodes per random episode of predictor-0 [ours]: with the
 paper's first sizes (16k, 32k) that is as many as its RP+ had (64k, 128k; paper-details.md)."""
-FINAL_FIELDS = ("final_episodes", "final_finetune")
+FINAL_FIELDS = ("final_episodes", "final_finetune", "final_members")
 """The final stage's sizes: given otherwise than a run recorded, they redo only its final
 stage."""
+
+MAX_MEMBERS = 16
+"""The most predictors TP+ may average: each costs a fine-tuning and its share of every
+estimate [ours]."""
 
 # Random-policy episodes for the first predictor [paper-details.md]: 16k (2 links), 32k (3).
 FIRST_EPISODES = {2: 16_000, 3: 32_000}
@@ -71,14 +83,16 @@ def default_first_episodes(n_links: int) -> int:
 
 
 def recorded_final(state: dict[str, Any], n_links: int) -> dict[str, Any]:
-    """The final stage's sizes (episodes, fine-tuning config) a run's state records. Runs
-    made before the record collected first_episodes (or their final_episodes) and
-    fine-tuned with their `finetune` config."""
+    """The final stage's sizes (episodes, fine-tuning config, predictors averaged) a run's
+    state records. Runs made before the record collected first_episodes (or their
+    final_episodes) and fine-tuned with their `finetune` config; runs made before
+    ensembles trained one predictor."""
     if "final" in state:
-        return state["final"]
+        return {"members": 1, **state["final"]}
     config = state["config"]
     first = config["first_episodes"] or default_first_episodes(n_links)
-    return {"episodes": config["final_episodes"] or first, "finetune": config["finetune"]}
+    return {"episodes": config["final_episodes"] or first, "finetune": config["finetune"],
+            "members": 1}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -99,6 +113,10 @@ class RecipeConfig:
     finetune: TrainConfig = FINETUNE
     final_finetune: TrainConfig | None = None
     """TP+'s fine-tuning; None: a run's recorded one, for a new run `FINAL_FINETUNE`."""
+    final_members: int | None = None
+    """Predictors fine-tuned alike for TP+ (seeds differing), their estimates averaged;
+    None: a run's recorded number, for a new run 1, the paper's [ours: three averaged took
+    0.7 off a single one's held-out error in 3link-0.1-1; docs/notebook]."""
     eval_episodes: int = 800
     """Fresh episodes for the error after each meta-iteration [paper: 800]."""
     seed: int = 0
@@ -113,6 +131,8 @@ class RecipeConfig:
                 raise ValueError(f"{name} must be >= 2, got {value}")
         if self.eval_episodes < 1:
             raise ValueError(f"eval_episodes must be >= 1, got {self.eval_episodes}")
+        if self.final_members is not None and not 1 <= self.final_members <= MAX_MEMBERS:
+            raise ValueError(f"final_members must be in 1..{MAX_MEMBERS}, got {self.final_members}")
 
     def episodes(self, n_links: int) -> tuple[int, int, int]:
         first = self.first_episodes or default_first_episodes(n_links)
@@ -177,7 +197,8 @@ class Recipe:
             finetune = asdict(cfg.final_finetune)
         else:
             finetune = recorded["finetune"] if recorded else asdict(FINAL_FINETUNE)
-        return {"episodes": episodes, "finetune": finetune}
+        members = cfg.final_members or (recorded["members"] if recorded else 1)
+        return {"episodes": episodes, "finetune": finetune, "members": members}
 
     def _redo_final(
         self, state: dict[str, Any], recorded: dict[str, Any], new: dict[str, Any]
@@ -187,7 +208,11 @@ class Recipe:
 
         def sizes(final: dict[str, Any]) -> str:
             tune = final["finetune"]
-            return f"{final['episodes']} episodes, {tune['steps']} steps at lr {tune['lr']:g}"
+            averaged = f", {final['members']} predictors averaged" if final["members"] > 1 else ""
+            return (
+                f"{final['episodes']} episodes, {tune['steps']} steps at lr {tune['lr']:g}"
+                f"{averaged}"
+            )
 
         self.log(
             f"[{self.setting.name}] the final stage was run with {sizes(recorded)}; "
@@ -294,7 +319,13 @@ class Recipe:
             state,
             "predictor-final",
             lambda: self._train_predictor(
-                "final", "data-final", final_finetune, self.predictor(m), "learned", m
+                "final",
+                "data-final",
+                final_finetune,
+                self.predictor(m),
+                "learned",
+                m,
+                members=state["final"]["members"],
             ),
         )
         self._stage(state, "evaluate-final", lambda: self._evaluate(state, "final"))
@@ -341,6 +372,7 @@ class Recipe:
         init: Path | None,
         policy: str,
         policy_index: int | None,
+        members: int = 1,
     ) -> None:
         _, episodes = load_dataset(self.dir / data)
         meta = {
@@ -359,9 +391,11 @@ class Recipe:
             if self.config.policy.runs > 1:
                 meta["policy_runs"] = self.config.policy.runs
         start = load_model(init)[0] if init is not None else None
-        train_predictor(
-            episodes, self.predictor(i).parent, train, meta, progress=self.progress, init=start
-        )
+        out = self.predictor(i).parent
+        if members > 1:
+            train_ensemble(episodes, out, train, members, meta, self.progress, start)
+        else:
+            train_predictor(episodes, out, train, meta, progress=self.progress, init=start)
 
     def _evaluate(self, state: dict[str, Any], i: int | str) -> None:
         estimator = PredictorEstimator.from_file(self.predictor(i), self.setting.name)

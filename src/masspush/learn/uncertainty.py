@@ -24,7 +24,7 @@ from torch import nn
 
 from masspush.data.rollout import Episodes
 from masspush.learn.predictor import (
-    MassPredictor,
+    Predictor,
     predictor_digest,
     read_torch_file,
     step_inputs,
@@ -71,17 +71,17 @@ class PrecisionHead(nn.Module):
         return self.net(features).squeeze(-1)
 
 
-def _inputs(predictor: MassPredictor, episodes: Episodes) -> tuple[torch.Tensor, torch.Tensor]:
+def _inputs(predictor: Predictor, episodes: Episodes) -> tuple[torch.Tensor, torch.Tensor]:
     """(E, K, 64) features and (E, K, n) estimates, the predictor frozen."""
     q0, steps = step_inputs(episodes, predictor.features_kind)
     with torch.no_grad():
         predictor.eval()
         features = predictor.features(torch.as_tensor(q0), torch.as_tensor(steps))
-        estimate = torch.softmax(predictor.head(features), dim=-1)
+        estimate = predictor.estimate(features)
     return features, estimate
 
 
-def concentration(predictor: MassPredictor, head: PrecisionHead, episodes: Episodes) -> np.ndarray:
+def concentration(predictor: Predictor, head: PrecisionHead, episodes: Episodes) -> np.ndarray:
     """(E, K, n) Dirichlet concentrations after each push."""
     features, estimate = _inputs(predictor, episodes)
     with torch.no_grad():
@@ -90,7 +90,7 @@ def concentration(predictor: MassPredictor, head: PrecisionHead, episodes: Episo
 
 
 def fit_head(
-    predictor: MassPredictor, episodes: Episodes, config: HeadConfig = HeadConfig()
+    predictor: Predictor, episodes: Episodes, config: HeadConfig = HeadConfig()
 ) -> PrecisionHead:
     """Fit the precision head by the Dirichlet likelihood of the true distributions, keeping
     the parameters that score best on a held-out fifth of the episodes (a head that reads
@@ -143,7 +143,7 @@ def intervals(
 
 
 def coverage(
-    predictor: MassPredictor, head: PrecisionHead, episodes: Episodes, credible: float = 0.9
+    predictor: Predictor, head: PrecisionHead, episodes: Episodes, credible: float = 0.9
 ) -> float:
     """Share of true per-link values inside the intervals after each episode's last push."""
     alpha = concentration(predictor, head, episodes)
@@ -158,7 +158,7 @@ class LearnedPosterior:
     distribution given an episode's history (what `experiments/bayes/pool_learned.py` pools with the
     particle filter's posterior)."""
 
-    def __init__(self, predictor: MassPredictor, head: PrecisionHead):
+    def __init__(self, predictor: Predictor, head: PrecisionHead):
         self.predictor, self.head = predictor, head
 
     @classmethod
@@ -201,7 +201,7 @@ def save_head(path: str | os.PathLike, head: PrecisionHead, meta: dict[str, Any]
 
 
 def load_head(
-    path: str | os.PathLike, setting: str | None = None, predictor: MassPredictor | None = None
+    path: str | os.PathLike, setting: str | None = None, predictor: Predictor | None = None
 ) -> PrecisionHead:
     """A saved head; refused for another setting than `setting`, and (`StaleHeadError`) for
     another predictor than `predictor`: a head reads the features of the one it was fitted

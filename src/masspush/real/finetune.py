@@ -28,7 +28,7 @@ import torch
 from torch import nn
 
 from masspush.data.rollout import Episodes, empty_episodes
-from masspush.learn.predictor import MassPredictor, read_torch_file, step_inputs
+from masspush.learn.predictor import Predictor, read_torch_file, step_inputs
 
 PAPER_CLASSES: dict[str, tuple[float, float]] = {
     "0.160-0.160": (0.16, 0.16),
@@ -153,7 +153,7 @@ def first_pushes(episodes: Episodes, pushes: int) -> Episodes:
 
 
 def predictor_features(
-    predictor: MassPredictor, episodes: Episodes, kind: str = "estimate", segment: int = 0
+    predictor: Predictor, episodes: Episodes, kind: str = "estimate", segment: int = 0
 ) -> np.ndarray:
     """What the classifier sees of each episode, after its last recorded push: the log of
     the predictor's estimate (E, n), or the predictor's LSTM output (E, 64). With `segment`
@@ -179,7 +179,7 @@ def predictor_features(
             part = slice(lo, lo + FEATURE_CHUNK)
             out = predictor.features(torch.as_tensor(q0[part]), torch.as_tensor(steps[part]))
             if kind == "estimate":
-                out = torch.log_softmax(predictor.head(out), dim=-1)
+                out = predictor.log_estimate(out)
             out = out.numpy()
             rows.append(out[np.arange(len(out)), last[part]])
     return np.concatenate(rows)
@@ -211,7 +211,7 @@ FEATURE_CHUNK = 16_384
 
 
 def run_features(
-    predictor: MassPredictor, episodes: Episodes, kind: str, segment: int
+    predictor: Predictor, episodes: Episodes, kind: str, segment: int
 ) -> tuple[np.ndarray, np.ndarray]:
     """Each run of `segment` pushes read on its own (`predictor_features` of the run), and the
     episode each run belongs to."""
@@ -220,7 +220,7 @@ def run_features(
 
 
 def classifier_inputs(
-    predictor: MassPredictor, episodes: Episodes, config: ClassifierConfig
+    predictor: Predictor, episodes: Episodes, config: ClassifierConfig
 ) -> tuple[np.ndarray, np.ndarray]:
     """The rows the classifier reads and the episode each belongs to: one row per episode,
     or with runs read one by one (`ClassifierConfig.runs`), one per run."""

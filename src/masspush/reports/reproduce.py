@@ -316,13 +316,15 @@ def write_csv(rows: list[dict], path: Path) -> None:
 
 
 def recipe_summary(state: dict[str, Any], setting: str) -> str:
-    """A run's sizes in a few words: meta-iterations x PPO pushes, TP+'s episodes and
-    fine-tuning steps."""
+    """A run's sizes in a few words: meta-iterations x PPO pushes, TP+'s episodes,
+    fine-tuning steps and, where several, predictors averaged."""
     config = state["config"]
     final = recorded_final(state, get_setting(setting).n_links)
+    averaged = f", {final['members']} averaged" if final["members"] > 1 else ""
     return (
         f"{config['meta_iterations']} x {config['policy']['steps'] / 1000:g}k PPO, "
         f"TP+ on {final['episodes'] / 1000:g}k, {final['finetune']['steps'] / 1000:g}k steps"
+        f"{averaged}"
     )
 
 
