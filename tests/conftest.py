@@ -89,3 +89,22 @@ def ray_cluster():
     ray.init(address="local", num_cpus=2, include_dashboard=False, logging_level=logging.ERROR)
     yield "local"
     ray.shutdown()
+
+
+@pytest.fixture
+def perturbed_pair():
+    """Makes an ensemble of a predictor and a copy whose output layer is nudged: two members
+    that estimate differently, without training a second one."""
+    import copy
+
+    import torch
+
+    from masspush.learn.predictor import PredictorEnsemble
+
+    def pair(predictor):
+        other = copy.deepcopy(predictor)
+        with torch.no_grad():
+            other.head.weight.add_(0.3 * torch.randn_like(other.head.weight))
+        return PredictorEnsemble([predictor, other])
+
+    return pair

@@ -121,9 +121,17 @@ def test_a_short_recipe_resumes_after_interruption_and_beats_the_floor(tmp_path,
     assert Recipe(SETTING, "stiff", run, plain, progress=False).run()["final"] == state["final"]
     assert calls.count("data-final") == 2
 
-    # TP+ as two predictors averaged: only predictor-final is trained again, twice, and
-    # ships and evaluates as any model.
+    # TP+ as two predictors averaged: only predictor-final is trained again, twice, from
+    # scratch, and ships and evaluates as any model.
+    real_ensemble, inits = train_module.train_ensemble, []
+
+    def spy_ensemble(*args, **kwargs):
+        inits.append(args[6] if len(args) > 6 else kwargs.get("init"))
+        return real_ensemble(*args, **kwargs)
+
+    monkeypatch.setattr(train_module, "train_ensemble", spy_ensemble)
     state = Recipe(SETTING, "stiff", run, replace(plain, final_members=2), progress=False).run()
+    assert inits == [None]
     assert state["final"]["members"] == 2  # data-final was looked at, and found complete:
     assert load_dataset(run / "data-final")[0].episodes == 300
     assert [h["stage"] for h in state["history"]] == stages

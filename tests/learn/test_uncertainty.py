@@ -7,7 +7,7 @@ from masspush import models as models_module
 from masspush.config import EnvConfig
 from masspush.data.rollout import EVAL, TRAIN, RandomPolicy, run_episodes
 from masspush.evaluate import EvaluateConfig
-from masspush.learn.predictor import PredictorEnsemble, load_model, predictor_digest
+from masspush.learn.predictor import load_model, predictor_digest
 from masspush.learn.uncertainty import (
     HeadConfig,
     LearnedPosterior,
@@ -63,22 +63,10 @@ def test_a_head_round_trips_and_refuses_another_setting(fitted, tmp_path):
         load_head(path, "2link-0.1-1")
 
 
-def _perturbed_pair(predictor):
-    """An ensemble of `predictor` and a copy whose output layer is nudged."""
-    import copy
-
-    import torch
-
-    other = copy.deepcopy(predictor)
-    with torch.no_grad():
-        other.head.weight.add_(0.3 * torch.randn_like(other.head.weight))
-    return PredictorEnsemble([predictor, other])
-
-
 @pytest.mark.slow
-def test_a_head_fits_an_ensemble_and_refuses_to_serve_one_member(fitted, tmp_path):
+def test_a_head_fits_an_ensemble_and_refuses_to_serve_one_member(fitted, tmp_path, perturbed_pair):
     predictor, _, test = fitted
-    ensemble = _perturbed_pair(predictor)
+    ensemble = perturbed_pair(predictor)
     head = fit_head(ensemble, test, HeadConfig(steps=100))
     assert head.net[0].in_features == 2 * 64  # both members' features
     alpha = concentration(ensemble, head, test)

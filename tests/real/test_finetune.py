@@ -112,18 +112,10 @@ def segmented_recording(path, segments: int = 3, episodes: int = 4):
 
 
 @pytest.mark.slow
-def test_an_ensembles_features_are_its_members_side_by_side(labelled_recording):
-    import copy
-
-    import torch
-
-    from masspush.learn.predictor import PredictorEnsemble
-
+def test_an_ensembles_features_are_its_members_side_by_side(labelled_recording, perturbed_pair):
     predictor = load_model(resolve_model("rp+", SETTING), SETTING)[0]
-    other = copy.deepcopy(predictor)
-    with torch.no_grad():
-        other.head.weight.add_(0.3 * torch.randn_like(other.head.weight))
-    ensemble = PredictorEnsemble([predictor, other])
+    ensemble = perturbed_pair(predictor)
+    other = ensemble.members[1]
     episodes = read_recording(labelled_recording).to_episodes()
     lstm = predictor_features(ensemble, episodes, "lstm")
     np.testing.assert_array_equal(lstm[:, :64], predictor_features(predictor, episodes, "lstm"))

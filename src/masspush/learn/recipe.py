@@ -7,7 +7,8 @@
       predictor-i   predictor-(i-1) fine-tuned on data-i, then evaluated with policy-i
     data-final      rollouts of the deterministic policy-M
     predictor-final predictor-M fine-tuned on data-final (with `final_members` N > 1: N
-                    fine-tunings with seeds seed..seed+N-1, their estimates averaged)
+                    predictors trained from scratch on it with seeds seed..seed+N-1,
+                    their estimates averaged)
 
 TP is predictor-1 with policy-1, TP+ is predictor-final with policy-M [paper, Sec. 4.1].
 Every stage writes its result into the run directory and is skipped when it is there, and
@@ -390,11 +391,14 @@ class Recipe:
             meta["policy_algo"] = self.config.policy.algo
             if self.config.policy.runs > 1:
                 meta["policy_runs"] = self.config.policy.runs
-        start = load_model(init)[0] if init is not None else None
         out = self.predictor(i).parent
         if members > 1:
-            train_ensemble(episodes, out, train, members, meta, self.progress, start)
+            # From scratch: members fine-tuned from one predictor-M stay alike, and averaged
+            # they gained less (3link-0.1-1 held out, 3 averaged: 14.28 against 14.04 from
+            # scratch; docs/notebook/2026-12-01-arm-speed.md).
+            train_ensemble(episodes, out, train, members, meta, self.progress)
         else:
+            start = load_model(init)[0] if init is not None else None
             train_predictor(episodes, out, train, meta, progress=self.progress, init=start)
 
     def _evaluate(self, state: dict[str, Any], i: int | str) -> None:
