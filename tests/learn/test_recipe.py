@@ -131,8 +131,8 @@ def test_a_short_recipe_resumes_after_interruption_and_beats_the_floor(tmp_path,
 
     monkeypatch.setattr(train_module, "train_ensemble", spy_ensemble)
     state = Recipe(SETTING, "stiff", run, replace(plain, final_members=2), progress=False).run()
-    assert inits == [None]
-    assert state["final"]["members"] == 2  # data-final was looked at, and found complete:
+    assert state["final"]["members"] == 2 and inits == [None]
+    assert calls.count("data-final") == 2  # the same episodes: data-final is not redone
     assert load_dataset(run / "data-final")[0].episodes == 300
     assert [h["stage"] for h in state["history"]] == stages
     assert {p.name for p in (run / "predictor-final").glob("member-*")} == {"member-0", "member-1"}
@@ -186,10 +186,11 @@ def test_a_runs_final_stage_is_kept_unless_other_sizes_are_given(tmp_path):
     )
     # A cut keeps the time of the episodes it keeps.
     assert state_of(replace(plain, final_episodes=500))["carried"] == {"data-final": 10.0}
-    # More predictors averaged redo the training, all of data-final's time kept.
+    # More predictors averaged redo the training only: data-final stays done.
     averaged = state_of(replace(plain, final_members=3))
     assert averaged["final"] == {**made, "members": 3}
-    assert averaged["carried"] == {"data-final": 30.0}
+    assert averaged["timings"] == {"policy-2": 9.0, "data-final": 30.0}
+    assert "data-final" not in averaged.get("carried", {})
     assert logs[-1].endswith(f"at lr {lr:g}, 3 predictors averaged")
     # A run that recorded its final stage before ensembles trained one predictor.
     recipe.state_path.write_text(json.dumps({

@@ -204,8 +204,9 @@ class Recipe:
     def _redo_final(
         self, state: dict[str, Any], recorded: dict[str, Any], new: dict[str, Any]
     ) -> None:
-        """Forget the final stage done at other sizes; data-final is kept to be grown or cut
-        (its episodes stay those of its seeds), predictor-final is trained again."""
+        """Forget the final stage done at other sizes; data-final is kept, to be grown or
+        cut where the episodes differ (its episodes stay those of its seeds), and
+        predictor-final is trained again."""
 
         def sizes(final: dict[str, Any]) -> str:
             tune = final["finetune"]
@@ -220,7 +221,7 @@ class Recipe:
             f"redoing it with {sizes(new)}"
         )
         timings = state["timings"]
-        if "data-final" in timings:
+        if "data-final" in timings and new["episodes"] != recorded["episodes"]:
             # The kept episodes' time counts towards the grown collection's; a cut keeps
             # only its share of it.
             kept = min(1.0, new["episodes"] / recorded["episodes"])
