@@ -17,7 +17,8 @@ killed `masspush train` continues where it stopped when run again.
 
 The last two stages (the final stage) may be resized on a run: resumed with a
 `final_episodes`, `final_finetune` or `final_members` other than it recorded, it grows (or
-cuts) data-final and trains predictor-final again; everything before stays. Resumed without
+cuts) data-final where the episodes differ and trains predictor-final again; everything
+before stays. Resumed without
 them, a run keeps the final stage it recorded (runs made before the record: the one they
 were made with).
 """
@@ -72,7 +73,7 @@ FINAL_FIELDS = ("final_episodes", "final_finetune", "final_members")
 stage."""
 
 MAX_MEMBERS = 16
-"""The most predictors TP+ may average: each costs a fine-tuning and its share of every
+"""The most predictors TP+ may average: each costs a training and its share of every
 estimate [ours]."""
 
 # Random-policy episodes for the first predictor [paper-details.md]: 16k (2 links), 32k (3).
@@ -115,9 +116,10 @@ class RecipeConfig:
     final_finetune: TrainConfig | None = None
     """TP+'s fine-tuning; None: a run's recorded one, for a new run `FINAL_FINETUNE`."""
     final_members: int | None = None
-    """Predictors fine-tuned alike for TP+ (seeds differing), their estimates averaged;
-    None: a run's recorded number, for a new run 1, the paper's [ours: three averaged took
-    0.7 off a single one's held-out error in 3link-0.1-1; docs/notebook]."""
+    """Predictors trained alike from scratch on data-final for TP+ (seeds differing), their
+    estimates averaged; 1 fine-tunes predictor-M as the paper does. None: a run's recorded
+    number, for a new run 1 [ours: five averaged took 0.75 off a single one's error on fresh
+    episodes in 3link-0.1-1; docs/notebook]."""
     eval_episodes: int = 800
     """Fresh episodes for the error after each meta-iteration [paper: 800]."""
     seed: int = 0
