@@ -113,6 +113,29 @@ def test_the_information_seeking_policy_prefers_an_informative_push():
     assert InfoSeekingPolicy(filt).act(start).shape == (2,)
 
 
+def test_expected_variance_scores_given_values_in_place_of_the_mass_distribution():
+    # The same lookahead (same seed) scored on the particles' own shares gives the default's
+    # numbers; one-hot classes score the class posterior's impurity, at most 1 - 1/classes.
+    start, pushes = np.zeros(4), np.array([[0.02, 0.0], [0.8, 0.6]])
+
+    def fresh():
+        filt = ParticleFilter(env_config(), SMALL, seed=3)
+        filt.reset(np.array([0.12, 0.12]), episode=0)
+        return filt
+
+    default = fresh().expected_variance(start, pushes)
+    filt = fresh()
+    same = filt.expected_variance(start, pushes, values=filt.shares(filt.masses))
+    np.testing.assert_allclose(same, default, rtol=1e-12)
+    filt = fresh()
+    onehot = np.eye(2)[(filt.shares(filt.masses)[:, 0] > 0.5).astype(int)]
+    gini = filt.expected_variance(start, pushes, values=onehot)
+    assert np.all((gini >= 0) & (gini <= 0.5 + 1e-12))
+    assert not np.allclose(gini, default)  # the same lookahead, other values
+    with pytest.raises(ValueError, match="values must be"):
+        filt.expected_variance(start, pushes, values=np.ones((5, 2)))
+
+
 def test_heavy_tails_let_one_bad_component_count_less():
     gauss = ParticleFilter(env_config(), BayesConfig(particles=48, tail_dof=None), seed=0)
     student = ParticleFilter(env_config(), BayesConfig(particles=48, tail_dof=4), seed=0)

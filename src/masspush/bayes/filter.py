@@ -449,15 +449,29 @@ class ParticleFilter:
         return theta
 
     # --- looking ahead ----------------------------------------------------------------------
-    def expected_variance(self, start: np.ndarray, actions: np.ndarray) -> np.ndarray:
+    def expected_variance(
+        self, start: np.ndarray, actions: np.ndarray, values: np.ndarray | None = None
+    ) -> np.ndarray:
         """For each candidate action, the expected posterior variance of the mass
         distribution (summed over links) after pushing with it. Each lookahead particle in
         turn plays the truth, its outcome simulated with sensing and actuation noise, and
-        reweighs the others; a push that fails teaches nothing."""
+        reweighs the others; a push that fails teaches nothing.
+
+        `values` (particles, q), where given, are scored in place of the mass distribution:
+        one-hot class labels, for instance, make the score the expected Gini impurity of
+        the class posterior (how likely a class drawn from it is wrong)."""
         k, c = self.config.lookahead_particles, len(actions)
         index = _systematic(self.weights, self.rng, k)
         masses, friction = np.tile(self.masses[index], (c, 1)), np.tile(self.friction[index], c)
-        shares = self.shares(self.masses[index])
+        if values is None:
+            shares = self.shares(self.masses[index])
+        else:
+            values = np.asarray(values, float)
+            if values.ndim != 2 or len(values) != len(self.masses):
+                raise ValueError(
+                    f"values must be (particles, q) = ({len(self.masses)}, q), got {values.shape}"
+                )
+            shares = values[index]
         prior_var = float(np.sum(shares.var(axis=0)))
         rows = np.repeat(np.asarray(actions, float), k, axis=0)
         nominal, failed = self.simulate(start, rows, masses, friction)
