@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+import warnings
 from dataclasses import replace
 from pathlib import Path
 
@@ -54,7 +55,7 @@ def class_filter(setting, frictions: int, lookahead: int):
 
 def run_config(args) -> dict:
     """What the episodes kept in --out depend on: a rerun resumes only with the same."""
-    keys = ("candidates", "lookahead", "frictions", "pushes", "seed")
+    keys = ("policy", "candidates", "lookahead", "frictions", "pushes", "seed")
     return {k: getattr(args, k) for k in keys}
 
 
@@ -66,7 +67,7 @@ def run(args) -> dict:
     n = len(PAPER_CLASSES)
     out, config = Path(args.out), run_config(args)
     done = json.loads(out.read_text())["episodes"] if out.exists() else {}
-    bar, asked = tqdm(total=n * args.episodes, desc="class-seeking"), []
+    bar, asked = tqdm(total=n * args.episodes, desc=args.policy), []
     try:
         for c, (label, pair) in enumerate(PAPER_CLASSES.items()):
             # The seeds of `masspush sim2real --world training` (seed 0): the same chains.
@@ -87,14 +88,19 @@ def run(args) -> dict:
                 for _ in range(args.pushes):
                     cand = rng.uniform(-1, 1, (args.candidates, 2))
                     cand = np.array([governor(a, start, pose.lengths) for a in cand], float)
-                    scores = filt.expected_variance(start, cand, values=onehot)
-                    action = cand[int(np.argmin(scores))]
+                    if args.policy == "random":  # the first candidate: a governed random push
+                        action = cand[0]
+                    else:
+                        scores = filt.expected_variance(start, cand, values=onehot)
+                        action = cand[int(np.argmin(scores))]
                     report = robot.push(action)
                     if report.failure is not None:
                         lost = report.failure
                         break
                     observed = np.asarray(report.config, float)
-                    filt.update(start, action, observed)
+                    with warnings.catch_warnings():  # tempered quietly, as `replay` does
+                        warnings.simplefilter("ignore", bayes.UnexplainedObservationWarning)
+                        filt.update(start, action, observed)
                     actions.append(action.tolist())
                     start = observed
                 w = filt.weights.reshape(n, -1).sum(axis=1)
@@ -115,6 +121,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--episodes", type=int, default=10, help="per class")
     parser.add_argument("--candidates", type=int, default=8, help="candidate pushes per push")
+    parser.add_argument(
+        "--policy", choices=("class-seeking", "random"), default="class-seeking",
+        help="random: uniform random pushes through the governor, weighed by the same oracle",
+    )  # fmt: skip
     parser.add_argument("--lookahead", type=int, default=20, help="lookahead particles")
     parser.add_argument("--frictions", type=int, default=8, help="friction grid per class")
     parser.add_argument("--pushes", type=int, default=2)
@@ -130,6 +140,8 @@ def main() -> None:
             kept = json.loads(out.read_text())["config"]
             if kept != run_config(args):
                 parser.error(f"--out: {out} holds episodes made with {kept}; use another file")
+        else:
+            out.write_text(json.dumps({"config": run_config(args), "episodes": {}}))
         with out.open("a"):
             pass
     except (OSError, ValueError, KeyError, TypeError) as err:
@@ -146,8 +158,9 @@ def main() -> None:
         print(f"| {name} | {' '.join(map(str, answers))} | "
               f"{100 * answers[c] / max(1, (labels == c).sum()):.0f} % |")  # fmt: skip
     seconds = np.mean([e["seconds"] for e in done.values()])
-    print(f"class-seeking oracle: {100 * np.mean(guess == labels):.1f} % of {len(labels)} "
-          f"episodes, {lost} lost, {seconds:.1f} s an episode")  # fmt: skip
+    accuracy = 100 * np.mean(guess == labels)
+    print(f"{args.policy} pushes, class oracle: {accuracy:.1f} % of {len(labels)} episodes, "
+          f"{lost} lost, {seconds:.1f} s an episode")  # fmt: skip
 
 
 if __name__ == "__main__":
