@@ -13,12 +13,19 @@ torque limit scaled) and the stiff pusher make of the same push:
 - their ratio, for the root's position and for the angles (yaw and joints): how well one
   push tells two mass distributions apart.
 
-    python experiments/arms/arm_strength.py [--setting 2link-0.1-1] [--chains 40]
+The arm's top speed is set by how far its torques can accelerate the tip before contact
+(v^2 = 2 a d: the speed goes as the square root of the torque scale), so `--placements`
+also measures the arm as it is, its base farther back and its run-up longer
+(`BASE:RUN_UP`, metres; ours 0.60:0.08, the farthest the KR 5 reaches, docs/arms.md).
+
+    python experiments/arms/arm_strength.py [--setting 2link-0.1-1] [--chains 40] \
+        [--placements 0.64:0.13]
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from collections.abc import Callable
 
@@ -28,7 +35,7 @@ import numpy as np
 from masspush.data import EVAL, run_episodes
 from masspush.models import model_and_policy
 from masspush.settings import get_setting
-from masspush.sim import ChainSim, make_pusher, pusher_kind, wrap_angle
+from masspush.sim import ArmPusher, ChainSim, make_pusher, pusher_kind, wrap_angle
 
 SHIFT = 0.05
 """Share of the chain's mass moved from its first link to its last for the signal."""
@@ -43,6 +50,32 @@ def stronger(scale: float) -> Callable[[mujoco.MjModel], None]:
         model.actuator_ctrlrange[model.actuator_ctrllimited.astype(bool)] *= scale
 
     return adjust
+
+
+def placed(arm: str, base: float, run_up: float) -> Callable[[], ArmPusher]:
+    """A factory of `arm` with its base `base` m behind the contact and a run-up of at most
+    `run_up` m (the push's 30 ms at its speed, as in the package)."""
+
+    def make() -> ArmPusher:
+        pusher = ArmPusher(arm)
+        pusher.arm = dataclasses.replace(pusher.arm, base_distance=base, max_standoff=run_up)
+        return pusher
+
+    return make
+
+
+def parse_placements(text: str) -> list[tuple[float, float]]:
+    """'0.64:0.13,0.66:0.15' -> [(0.64, 0.13), (0.66, 0.15)]; ValueError naming the bad one."""
+    pairs = []
+    for item in filter(None, text.split(",")):
+        try:
+            base, run_up = (float(v) for v in item.split(":"))
+        except ValueError:
+            raise ValueError(f"--placements takes BASE:RUN_UP pairs, got {item!r}") from None
+        if not (0 < run_up < base < 2):
+            raise ValueError(f"--placements needs 0 < RUN_UP < BASE < 2 m, got {item!r}")
+        pairs.append((base, run_up))
+    return pairs
 
 
 def shifted(masses: np.ndarray) -> np.ndarray | None:
@@ -64,12 +97,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--chains", type=int, default=40, help="fresh chains (first pushes)")
     parser.add_argument("--repeats", type=int, default=6, help="noisy repeats of each push")
     parser.add_argument("--scales", default="1,1.5,2,3", help="torque-limit scales of the arm")
+    parser.add_argument(
+        "--placements", default="", help="extra arms at x1: BASE:RUN_UP pairs in metres"
+    )
     parser.add_argument("--seed", type=int, default=4243)
     args = parser.parse_args(argv)
     try:
         scales = [float(s) for s in args.scales.split(",")]
     except ValueError:
         sys.exit(f"error: --scales must be numbers separated by commas, got {args.scales!r}")
+    try:
+        placements = parse_placements(args.placements)
+    except ValueError as err:
+        sys.exit(f"error: {err}")
     if args.chains < 1 or args.repeats < 2 or min(scales) <= 0:
         sys.exit("error: --chains >= 1, --repeats >= 2 and scales > 0 are required")
     try:
@@ -84,8 +124,12 @@ def main(argv: list[str] | None = None) -> int:
     fresh = run_episodes(env_config, policy, np.arange(3 * args.chains), EVAL, args.seed)
     picked = [e for e in np.flatnonzero(fresh.ok) if shifted(fresh.masses[e]) is not None]
     picked = picked[: args.chains]
-    variants = [(f"{env_config.pusher} x{s:g}", env_config.pusher, stronger(s)) for s in scales]
-    variants.append(("stiff", "stiff", None))
+    arm = env_config.pusher
+    variants = [(f"{arm} x{s:g}", lambda: make_pusher(arm), stronger(s)) for s in scales]
+    variants += [
+        (f"{arm} x1, base {b:g} m, run-up {r:g} m", placed(arm, b, r), None) for b, r in placements
+    ]
+    variants.append(("stiff", lambda: make_pusher("stiff"), None))
     rng = np.random.default_rng(args.seed)
     noise = rng.normal(0, env_config.action_noise, (len(picked), args.repeats, 2))
     obs = env_config.obs_noise
@@ -97,8 +141,8 @@ def main(argv: list[str] | None = None) -> int:
         "| noise xy (mm) / angles (mrad) | signal / noise: xy, angles (median) | failed |"
     )
     print("|---|---|---|---|---|---|---|")
-    for label, name, adjust in variants:
-        pusher = make_pusher(name)
+    for label, make, adjust in variants:
+        pusher = make()
         speed, slide, sig, spread, snr = [], [], [], [], []
         failed: dict[str, int] = {}
         for k, e in enumerate(picked):
@@ -137,7 +181,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"| {label} | | | | | | {fails} (of {len(picked)} chains) |")
             continue
         sig, spread, snr = np.array(sig), np.array(spread), np.array(snr)
-        tip = f"{np.mean(speed):.2f}" if name != "stiff" else "as asked"
+        tip = f"{np.mean(speed):.2f}" if label != "stiff" else "as asked"
         print(f"| {label} | {tip} | {1000 * np.mean(slide):.0f} "
               f"| {1000 * sig[:, 0].mean():.1f} / {1000 * sig[:, 1].mean():.1f} "
               f"| {1000 * spread[:, 0].mean():.1f} / {1000 * spread[:, 1].mean():.1f} "

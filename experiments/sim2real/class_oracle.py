@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import argparse
 import json
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -52,25 +51,18 @@ def class_log_posteriors(
     """Episode id -> log posterior of each class after the episode's pushes; `places`:
     each episode's place in the recording, its filter's seed."""
     done = read_cache(cache)
-    n, k = len(classes), len(frictions)
-    masses = np.repeat(np.array(classes, float), k, axis=0)
-    friction = np.tile(frictions, n)
-    # Never resampled: the hypotheses are the classes themselves.
-    config = replace(bayes.default_config(setting, pusher), particles=n * k, ess_fraction=1e-9)
-    config = replace(config, lookahead_particles=min(config.lookahead_particles, n * k))
-    filt = bayes.filter_for(setting, pusher, config=config, seed=0)
+    hypotheses = bayes.hypothesis_filter(setting, classes, frictions, pusher)
     try:
         for episode in tqdm(recording.episodes, desc="class oracle"):
             if episode["id"] in done:
                 continue
-            filt.reset(np.array(episode["lengths"], float), episode=places[episode["id"]])
-            filt.masses, filt.friction = masses.copy(), friction.copy()
-            filt.replay(episode["observations"], episode["actions"])
-            w = filt.weights.reshape(n, k).sum(axis=1)
+            hypotheses.reset(episode["lengths"], episode=places[episode["id"]])
+            hypotheses.filter.replay(episode["observations"], episode["actions"])
+            w = hypotheses.weights()
             done[episode["id"]] = np.log(np.maximum(w, 1e-300)).tolist()
             cache.write_text(json.dumps({"version": CACHE_VERSION, "episodes": done}))
     finally:
-        filt.close()
+        hypotheses.close()
     return done
 
 
@@ -108,8 +100,7 @@ def main() -> None:
     labels, names = labelled(recording)
     by_label = {e["label"]: e["masses"] for e in kept}
     classes = [np.array(by_label[name], float) for name in names]
-    low, high = setting.physics().friction_range
-    frictions = np.linspace(low, high, args.frictions + 2)[1:-1]
+    frictions = bayes.friction_grid(setting, args.frictions)
     cache = Path(args.cache) if args.cache else path.with_suffix(".oracle.json")
     try:  # before any episode is weighed: a cache that cannot be written loses them all
         if not cache.exists():

@@ -24,7 +24,6 @@ import argparse
 import json
 import time
 import warnings
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -36,21 +35,11 @@ from masspush.settings import get_setting
 from masspush.sim import reach_governor
 
 
-def class_filter(setting, frictions: int, lookahead: int):
-    """The filter whose particles are the five classes x `frictions` table frictions, never
-    resampled; with each particle's one-hot class."""
-    classes = np.array(list(PAPER_CLASSES.values()), float)
-    n = len(classes)
-    low, high = setting.physics().friction_range
-    grid = np.linspace(low, high, frictions + 2)[1:-1]
-    config = replace(
-        bayes.default_config(setting), particles=n * frictions, ess_fraction=1e-9,
-        lookahead_particles=min(lookahead, n * frictions),
-    )  # fmt: skip
-    filt = bayes.filter_for(setting, config=config, seed=0)
-    masses, friction = np.repeat(classes, frictions, axis=0), np.tile(grid, n)
-    onehot = np.repeat(np.eye(n), frictions, axis=0)
-    return filt, masses, friction, onehot
+def class_filter(setting, frictions: int, lookahead: int) -> bayes.HypothesisFilter:
+    """The filter whose particles are the five classes x `frictions` table frictions."""
+    classes = list(PAPER_CLASSES.values())
+    grid = bayes.friction_grid(setting, frictions)
+    return bayes.hypothesis_filter(setting, classes, grid, lookahead=lookahead)
 
 
 def run_config(args) -> dict:
@@ -63,7 +52,8 @@ def run(args) -> dict:
     """The episodes asked for (`--episodes` per class) by id, measured or kept in --out."""
     setting = get_setting("real-ur10")
     governor = reach_governor(setting.pusher, setting.physics())
-    filt, masses, friction, onehot = class_filter(setting, args.frictions, args.lookahead)
+    classes = class_filter(setting, args.frictions, args.lookahead)
+    filt, onehot = classes.filter, classes.onehot
     n = len(PAPER_CLASSES)
     out, config = Path(args.out), run_config(args)
     done = json.loads(out.read_text())["episodes"] if out.exists() else {}
@@ -81,8 +71,7 @@ def run(args) -> dict:
                     bar.update()
                     continue
                 t0 = time.perf_counter()
-                filt.reset(np.asarray(pose.lengths, float), episode=c * 1000 + i)
-                filt.masses, filt.friction = masses.copy(), friction.copy()
+                classes.reset(pose.lengths, episode=c * 1000 + i)
                 rng = np.random.default_rng([args.seed, c, i])
                 start, actions, lost = np.asarray(pose.config, float), [], None
                 for _ in range(args.pushes):
@@ -103,17 +92,16 @@ def run(args) -> dict:
                         filt.update(start, action, observed)
                     actions.append(action.tolist())
                     start = observed
-                w = filt.weights.reshape(n, -1).sum(axis=1)
                 done[key] = {
-                    "label": c, "posterior": w.tolist(), "actions": actions, "failure": lost,
-                    "seconds": time.perf_counter() - t0,
+                    "label": c, "posterior": classes.weights().tolist(), "actions": actions,
+                    "failure": lost, "seconds": time.perf_counter() - t0,
                 }  # fmt: skip
                 out.write_text(json.dumps({"config": config, "episodes": done}))
                 bar.update()
             robot.close()
     finally:
         bar.close()
-        filt.close()
+        classes.close()
     return {key: done[key] for key in asked}
 
 

@@ -1,6 +1,7 @@
 """The simulation-based Bayesian estimator: a particle filter whose likelihood is the
-simulator (`filter`), the arm scenes it simulates arms in (`arm_scenes`), and the filter as
-an estimator of `masspush.evaluate` (`estimator`).
+simulator (`filter`), the arm scenes it simulates arms in (`arm_scenes`), the filter over a
+fixed set of hypotheses (`hypotheses`), and the filter as an estimator of
+`masspush.evaluate` (`estimator`).
 
 The names below are its public API (what experiments/ may import); those of the 0.1 module
 `masspush.bayes` are among them."""
@@ -13,6 +14,7 @@ EXPORTS = {
                "config_difference", "default_config", "failure_floor", "filter_for"),
     "estimator": ("BAYES_MODELS", "BayesEstimator", "run_bayes_episode"),
     "arm_scenes": ("ArmScene", "ArmSimulator"),
+    "hypotheses": ("HypothesisFilter", "friction_grid", "hypothesis_filter"),
 }  # fmt: skip
 __getattr__ = lazy(__name__, EXPORTS)
 __all__ = names(EXPORTS)

@@ -142,7 +142,7 @@ class CollectConfig:
     policy: str = "random"
     """The pushing policy (registered names: `masspush.data.rollout.POLICIES`)."""
     pusher: str | None = None
-    """stiff, kuka or ur10 (default: the setting's pusher)."""
+    """stiff, kuka, kuka-far, ur10 or ur10-stationary (default: the setting's pusher)."""
     seed: int = 0
     """Base seed of the episodes."""
     shard_size: int = 1000

@@ -99,7 +99,7 @@ class ArmBench:
     links: int = 2
     """Links of the chains (masses in [0.1, 1] kg, the KUKA settings')."""
     arm: str = "kuka"
-    """The arm: kuka or ur10."""
+    """The arm: kuka, kuka-far, ur10 or ur10-stationary."""
     episodes: int = 200
     """Episodes of random pushes for each pusher."""
     workers: int | None = None

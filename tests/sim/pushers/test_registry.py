@@ -13,7 +13,7 @@ from masspush.sim.pushers import (
 
 
 def test_each_pusher_states_what_it_can_do():
-    assert PUSHERS == ("stiff", "kuka", "ur10", "ur10-stationary")
+    assert PUSHERS == ("stiff", "kuka", "kuka-far", "ur10", "ur10-stationary")
     assert pusher_kind(IDEAL_PUSHER).batch and not pusher_kind(IDEAL_PUSHER).arm
     for name in ("kuka", "ur10", "ur10-stationary"):
         assert pusher_kind(name).arm

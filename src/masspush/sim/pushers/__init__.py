@@ -28,6 +28,14 @@ PUSHER_KINDS: dict[str, PusherKind] = {
             camera_distance=1.6,
         ),
         PusherKind(
+            "kuka-far",
+            "KUKA KR 5, longer run-up",
+            lambda: ArmPusher("kuka-far"),
+            batch=True,
+            arm=True,
+            camera_distance=1.6,
+        ),
+        PusherKind(
             "ur10", "UR10", lambda: ArmPusher("ur10"), batch=True, arm=True, camera_distance=2.2
         ),
         PusherKind(

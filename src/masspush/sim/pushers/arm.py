@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import ctypes
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import mujoco
@@ -83,14 +83,20 @@ UR10_JOINT_SPEED = tuple(math.radians(v) for v in (120, 120, 180, 180, 180, 180)
 # Base distances and pitches found by a reachability scan of the models (docs/arms.md):
 # the KR 5's elbow (A3, +165 degrees) cannot fold far enough to push closer than ~0.55 m
 # with its wrist above the table.
+KR5 = ArmSpec(
+    "kuka",
+    "kuka_kr5_sixx_r650.xml",
+    base_distance=0.60,
+    max_standoff=0.08,
+    tool_pitch=math.radians(75),
+)
 ARMS = {
-    "kuka": ArmSpec(
-        "kuka",
-        "kuka_kr5_sixx_r650.xml",
-        base_distance=0.60,
-        max_standoff=0.08,
-        tool_pitch=math.radians(75),
-    ),
+    "kuka": KR5,
+    # The same KR 5 a little farther back, so that its run-up can be longer: its tip's top
+    # speed is set by how far its torques accelerate it before contact (v^2 = 2 a d), 2.6 m/s
+    # from 8 cm, 3.2 m/s from 13 cm; 0.64 m is as far back as it reaches over that run-up
+    # (docs/notebook/2026-12-01-arm-speed.md, "The run-up sets the arm's speed").
+    "kuka-far": replace(KR5, name="kuka-far", base_distance=0.64, max_standoff=0.13),
     "ur10": ArmSpec("ur10", "ur10.xml", base_distance=0.75, max_standoff=0.15, tool_pitch=0.0),
     "ur10-stationary": ArmSpec(
         "ur10-stationary",
