@@ -55,3 +55,5 @@ def test_hypotheses_of_another_chain_are_refused():
         hypothesis_filter(SETTING, [np.array([1.0, 2.0, 3.0])], friction_grid(SETTING, 2))
     with pytest.raises(ValueError, match="frictions at least"):
         hypothesis_filter(SETTING, HYPOTHESES, np.array([]))
+    with pytest.raises(ValueError, match="lookahead_particles >= 4"):  # 0 is not the default
+        hypothesis_filter(SETTING, HYPOTHESES, friction_grid(SETTING, 3), lookahead=0)

@@ -78,11 +78,12 @@ def hypothesis_filter(
         )
     h, f = len(masses), len(frictions)
     config = default_config(setting, pusher)
+    lookahead = config.lookahead_particles if lookahead is None else lookahead
     config = replace(
         config,
         particles=h * f,
         ess_fraction=1e-9,  # never resampled: the hypotheses are the particles
-        lookahead_particles=min(lookahead or config.lookahead_particles, h * f),
+        lookahead_particles=min(lookahead, h * f),
     )
     filt = filter_for(setting, pusher, config=config, seed=seed)
     return HypothesisFilter(filt, np.repeat(masses, f, axis=0), np.tile(frictions, h), h)
