@@ -44,7 +44,9 @@ torque-limited tip's top speed is set by its run-up (v^2 = 2 a d: 2.6 m/s over 8
 over 13 cm), and the paper does not say where its arm stood. With 3 links the farther arm's
 pushes taught more at every stage of the recipe (TP 23.90 against 28.71, TP+ of five
 predictors 13.05 against 14.47 on fresh episodes) and the particle filter gained 5 points
-(docs/notebook/2026-12-01-arm-speed.md, "The run-up sets the arm's speed") [ours]."""
+(docs/notebook/2026-12-01-arm-speed.md, "The run-up sets the arm's speed"). With 2 links it
+did not pay: the same recipe through it reached TP+ 7.73 against `kuka`'s 5.29, so
+2link-0.1-1 keeps `PAPER_PUSHER` [ours]."""
 
 
 @dataclass(frozen=True)

@@ -39,7 +39,8 @@ class BaselinesConfig:
     table: bool = False
     """Print the table of every setting's results and stop."""
     pusher: str | None = None
-    """The pusher (default: the setting's: kuka, the paper's arm; stiff for 10 kg links)."""
+    """The pusher (default: the setting's: kuka, the paper's arm; kuka-far, the same arm with a
+    longer run-up, for 3link-0.1-1; stiff for 10 kg links)."""
     fast: bool = False
     """Train with the fast option (Adam, batch 256, 20k steps)."""
     features: str | None = None
