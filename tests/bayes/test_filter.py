@@ -9,6 +9,7 @@ from masspush.bayes.filter import (
     ARM_CONFIG,
     ARM_LIKELIHOOD_POWER,
     ARM_MAX_PUSH,
+    ARM_PARTICLES,
     ARM_SURROGATE,
     FILTER_REVISION,
     SURROGATE_CONFIG,
@@ -153,7 +154,9 @@ def test_where_an_arm_pushes_the_filter_simulates_the_arm_or_its_surrogate():
     filt = filter_for(setting)
     assert filt.env.pusher == "kuka" and filt.arm is not None
     assert filt.config == replace(ARM_CONFIG, likelihood_power=ARM_LIKELIHOOD_POWER[0])
-    assert filter_for(get_setting("3link-0.1-1")).likelihood_power == ARM_LIKELIHOOD_POWER[1]
+    longer = filter_for(get_setting("3link-0.1-1"))
+    assert longer.likelihood_power == ARM_LIKELIHOOD_POWER[1]
+    assert longer.config.particles == ARM_PARTICLES[1] != filt.config.particles
     assert filt.settings()["simulated_pusher"] == "kuka"
     surrogate = filter_for(setting, config=SURROGATE_CONFIG)
     assert surrogate.physics.push_speed_max == ARM_SURROGATE["kuka"]["push_speed_max"]

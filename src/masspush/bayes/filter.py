@@ -604,6 +604,12 @@ the middle; 0.8 estimated better on the first 100 episodes of seed 1 (8.14 again
 coverage 91 % both) and of 300 of seed 0 (10.01 against 11.13, coverage 85 % against
 87 %) (docs/notebook, "300 paired episodes in the 2-link cells") [ours]."""
 
+ARM_PARTICLES = (128, 256)
+"""Particles where the filter simulates an arm: two links, three or more. With three links and
+`kuka-far` (3link-0.1-1's pusher), on the tuning episodes (seed 1, 40) 256 particles erred
+17.63 and covered 92 % against 19.82 and 84 % with 128, at 3.8 s an episode against 2.6 on
+a 2-core Intel Xeon VM (docs/notebook/2026-12-01-arm-speed.md) [ours]."""
+
 ARM_MAX_PUSH = 0.15
 """With `arm_model="surrogate"`, the information-seeking policy keeps to |a1| <= 0.15
 (0.75 m/s). The KR 5 under the paper's control reaches ~2.6 m/s at most (torque limits), so
@@ -631,12 +637,16 @@ contact). Fitted by `experiments/bayes/fit_arm_surrogate.py` over speed scale, h
 
 def default_config(setting, pusher: str | None = None) -> BayesConfig:
     """The filter's configuration for chains of `setting` pushed by `pusher` (the
-    setting's by default): `ARM_CONFIG` with `ARM_LIKELIHOOD_POWER` where an arm pushes,
-    else `BayesConfig()`."""
+    setting's by default): `ARM_CONFIG` with `ARM_LIKELIHOOD_POWER` and `ARM_PARTICLES` where
+    an arm pushes, else `BayesConfig()`."""
     if not pusher_kind(pusher or setting.pusher).arm:
         return BayesConfig()
-    power = ARM_LIKELIHOOD_POWER[0 if setting.n_links == 2 else 1]
-    return replace(ARM_CONFIG, likelihood_power=power)
+    longer = 0 if setting.n_links == 2 else 1
+    return replace(
+        ARM_CONFIG,
+        likelihood_power=ARM_LIKELIHOOD_POWER[longer],
+        particles=ARM_PARTICLES[longer],
+    )
 
 
 def filter_for(
