@@ -590,7 +590,13 @@ def _reflect(x: np.ndarray, lows: np.ndarray, highs: np.ndarray) -> np.ndarray:
     return np.where(highs > lows, lows + y, lows)
 
 
-ARM_CONFIG = BayesConfig(particles=128, lookahead_particles=16, candidates=4)
+ARM_PARTICLES = (128, 256)
+"""Particles where the filter simulates an arm: two links, three or more. With three links and
+`kuka-far` (3link-0.1-1's pusher), on the tuning episodes (seed 1, 40) 256 particles erred
+17.63 and covered 92 % against 19.82 and 84 % with 128, at 3.8 s an episode against 2.6 on
+a 2-core Intel Xeon VM (docs/notebook/2026-12-01-arm-speed.md) [ours]."""
+
+ARM_CONFIG = BayesConfig(particles=ARM_PARTICLES[0], lookahead_particles=16, candidates=4)
 """Where an arm pushes and the filter simulates it: an arm push costs ~11-17 ms of one core
 against ~0.3 ms on the batch path, so fewer particles, lookahead particles and candidates
 keep an episode within 10 s on two cores (docs/notebook) [ours]."""
@@ -603,12 +609,6 @@ episodes (seed 1, 40 each) 1 covered 82 % with two links and 0.6 covered 81 % wi
 the middle; 0.8 estimated better on the first 100 episodes of seed 1 (8.14 against 8.85,
 coverage 91 % both) and of 300 of seed 0 (10.01 against 11.13, coverage 85 % against
 87 %) (docs/notebook, "300 paired episodes in the 2-link cells") [ours]."""
-
-ARM_PARTICLES = (128, 256)
-"""Particles where the filter simulates an arm: two links, three or more. With three links and
-`kuka-far` (3link-0.1-1's pusher), on the tuning episodes (seed 1, 40) 256 particles erred
-17.63 and covered 92 % against 19.82 and 84 % with 128, at 3.8 s an episode against 2.6 on
-a 2-core Intel Xeon VM (docs/notebook/2026-12-01-arm-speed.md) [ours]."""
 
 ARM_MAX_PUSH = 0.15
 """With `arm_model="surrogate"`, the information-seeking policy keeps to |a1| <= 0.15
