@@ -27,6 +27,7 @@ from masspush.metrics import (
     percentage_error,
 )
 from masspush.settings import Setting
+from masspush.sim.pushers import pusher_field, pusher_kind
 
 
 @dataclass(frozen=True)
@@ -42,7 +43,7 @@ class EvaluateConfig:
     """Fresh episodes from the evaluation stream."""
     seed: int = 0
     """Base seed of the evaluation stream."""
-    pusher: str | None = None
+    pusher: str | None = pusher_field()
     """The pusher (default: the one the model was trained with; the filter: the setting's)."""
     workers: int | None = None
     """Processes for an arm (default: one per core); with --ray local, the CPUs of the
@@ -74,6 +75,8 @@ class EvaluateConfig:
         check_int("seed", self.seed, 0)
         check_int("workers", self.workers, optional=True)
         check_address(self.ray)
+        if self.pusher is not None:
+            pusher_kind(self.pusher)
         if self.paired_with is not None:
             check_input(self.paired_with, "paired_with")
 

@@ -27,7 +27,7 @@ CASES: dict[str, list[list[str]]] = {
                  ["--paired-with", "GARBAGE"], ["--setting", "nope"], ["--workers", "0"],
                  ["--model", "DIR"], ["--model", "GARBAGE"], ["--episodes", "nan"],
                  ["--paired-with", "FOREIGN_RESULT"], ["--model", "FOREIGN_MODEL"],
-                 ["--model", "THREE_LINK_MODEL", "--allow-mismatch"]],
+                 ["--model", "THREE_LINK_MODEL", "--allow-mismatch"], ["--pusher", "nope"]],
     "run": [["--count", "0"], ["--count", "-1"], ["--pushes", "0"], ["--seed", "-1"],
             ["--robot", "nope"], ["--robot", "replay"], ["--episodes-file", "DIR"],
             ["--masses", "nan,1"], ["--record", "DIR"], ["--lab", "1"], ["--setting", "nope"],
@@ -35,7 +35,7 @@ CASES: dict[str, list[list[str]]] = {
             ["--record", "FOREIGN"], ["--model", "FOREIGN_MODEL"]],
     "collect": [["--episodes", "0"], ["--episodes", "-1"], ["--shard-size", "0"],
                 ["--policy", "nope"], ["--setting", "nope"], ["--seed", "-1"],
-                ["--episodes", "1000000000000"], ["--out", "GARBAGE"]],
+                ["--episodes", "1000000000000"], ["--out", "GARBAGE"], ["--pusher", "nope"]],
     "check-episodes": [["DIR"], ["MISSING"], ["GARBAGE"]],
     "train-predictor": [["--data", "MISSING"], ["--data", "DIR"], ["--batch-size", "0"],
                         ["--steps", "-1"], ["--lr", "nan"], ["--episodes", "1"],
@@ -43,8 +43,9 @@ CASES: dict[str, list[list[str]]] = {
     "baselines": [["--setting", "nope"], ["--table", "--pusher", "nope"],
                   ["--eval-episodes", "0"], ["--episodes", "1", "5"]],
     "train": [["--setting", "nope"], ["--meta-iterations", "0"], ["--ppo-steps", "0"],
-              ["--envs", "0"], ["--algo", "nope"]],
-    "reproduce": [["--settings", "nope"], ["--meta-iterations", "0"], ["--eval-episodes", "0"]],
+              ["--envs", "0"], ["--algo", "nope"], ["--pusher", "nope"]],
+    "reproduce": [["--settings", "nope"], ["--meta-iterations", "0"], ["--eval-episodes", "0"],
+                  ["--pusher", "nope"]],
     "calibrate": [["--setting", "nope"], ["--model", "MISSING"], ["--episodes", "0"],
                   ["--out", "DIR"], ["--model", "GARBAGE"]],
     "finetune": [["--episodes", "MISSING"], ["--episodes", "DIR"], ["--episodes", "GARBAGE"],
@@ -159,6 +160,7 @@ def test_bad_input_is_one_line_and_a_non_zero_exit(name, case, tmp_path, capsys,
         raise StartedWork(f"masspush {' '.join(argv)} started work instead of refusing")
 
     # Bad input is refused before any work: anything still running after 20 s started it.
+    before = set(tmp_path.rglob("*"))
     signal.signal(signal.SIGALRM, started_work)
     signal.alarm(20)
     try:
@@ -175,3 +177,6 @@ def test_bad_input_is_one_line_and_a_non_zero_exit(name, case, tmp_path, capsys,
         "masspush: error: "
     ), lines[0]
     assert "Traceback" not in err
+    # Nor may it leave anything behind: a progress bar's carriage returns hide on one line
+    # with the error, an output directory made before the refusal does not.
+    assert set(tmp_path.rglob("*")) == before, f"masspush {' '.join(argv)} wrote files"

@@ -89,3 +89,16 @@ def test_a_field_without_a_default_is_a_required_option(capsys):
         main(["train-predictor", "--data", "somewhere"])
     assert exit_.value.code == 2
     assert "required: --setting" in capsys.readouterr().err
+
+
+def test_a_pusher_option_lists_the_registry_in_its_help(capsys):
+    from masspush.sim.pushers import PUSHERS
+
+    with pytest.raises(SystemExit):
+        main(["collect", "--help"])
+    shown = " ".join(capsys.readouterr().out.split())
+    assert "One of: " + ", ".join(PUSHERS) + "." in shown
+    with pytest.raises(SystemExit):
+        main(["bench", "arm", "--help"])
+    shown = " ".join(capsys.readouterr().out.split())
+    assert "One of: kuka," in shown and "stiff" not in shown.split("--arm ARM")[1].split("--")[0]

@@ -2,7 +2,9 @@
 
 A dataclass field becomes `--field-name`: its type from the annotation, its help text from
 the docstring written under it, its default shown from the dataclass (argparse never holds
-a default of its own), and its validation is the dataclass's `__post_init__`. A command
+a default of its own), the values it takes listed where its metadata names them
+(`choices`, e.g. `masspush.sim.pushers.pusher_field`), and its validation is the
+dataclass's `__post_init__`. A command
 adds the fields it takes (`add_fields`) and builds its config from what was given
 (`build`): fields not given keep the dataclass's defaults.
 """
@@ -106,6 +108,8 @@ def add_fields(
         default = _default(f)
         flag = "--" + rename.get(name, name).replace("_", "-")
         text = ((help or {}).get(name) or docs.get(name, "")).replace("%", "%%")
+        if f.metadata.get("choices"):
+            text += f" One of: {', '.join(f.metadata['choices'])}."
         kwargs: dict[str, Any] = {"dest": prefix + name, "default": argparse.SUPPRESS}
         if name in required or default is MISSING:
             # A field without a default is required: argparse says so in one line, where the

@@ -45,6 +45,7 @@ from masspush.data.rollout import (
     run_episodes,
 )
 from masspush.settings import Setting, get_setting
+from masspush.sim.pushers import pusher_field, pusher_kind
 
 SCHEMA_VERSION = 1
 MANIFEST = "manifest.json"
@@ -141,8 +142,8 @@ class CollectConfig:
     """Episodes the dataset is to hold."""
     policy: str = "random"
     """The pushing policy (registered names: `masspush.data.rollout.POLICIES`)."""
-    pusher: str | None = None
-    """stiff, kuka, kuka-far, ur10 or ur10-stationary (default: the setting's pusher)."""
+    pusher: str | None = pusher_field()
+    """The pusher (default: the setting's)."""
     seed: int = 0
     """Base seed of the episodes."""
     shard_size: int = 1000
@@ -171,6 +172,8 @@ class CollectConfig:
         check_int("seed", self.seed, 0)
         check_int("workers", self.workers, optional=True)
         check_choice("policy", self.policy, tuple(POLICIES))
+        if self.pusher is not None:
+            pusher_kind(self.pusher)
         check_address(self.ray)
 
 

@@ -77,6 +77,9 @@ class Sim2RealConfig:
     features feed the classifier."""
 
     def __post_init__(self) -> None:
+        from masspush.settings import get_setting
+
+        get_setting(self.setting)  # a setting that exists, before run_sim2real makes `out`
         if set(self.models) != set(ARMS):
             raise ValueError(f"models must name one model for each of {list(ARMS)}")
         if self.world not in WORLDS:

@@ -24,7 +24,7 @@ from masspush.learn.estimator import PredictorEstimator
 from masspush.learn.predictor import FAST, TrainConfig, train_predictor
 from masspush.models import ship
 from masspush.settings import get_setting
-from masspush.sim.pushers import pusher_kind
+from masspush.sim.pushers import pusher_field, pusher_kind
 
 # Episodes for RP and RP+ [paper Sec. 4.1]: 32k / 64k (2 links), 64k / 128k (3 links).
 EPISODES = {2: (32_000, 64_000), 3: (64_000, 128_000)}
@@ -38,9 +38,8 @@ class BaselinesConfig:
     """Named setting (needed unless --table)."""
     table: bool = False
     """Print the table of every setting's results and stop."""
-    pusher: str | None = None
-    """The pusher (default: the setting's: kuka, the paper's arm; kuka-far, the same arm with a
-    longer run-up, for 3link-0.1-1; stiff for 10 kg links)."""
+    pusher: str | None = pusher_field()
+    """The pusher (default: the setting's, `masspush.settings`)."""
     fast: bool = False
     """Train with the fast option (Adam, batch 256, 20k steps)."""
     features: str | None = None

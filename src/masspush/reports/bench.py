@@ -15,7 +15,7 @@ from masspush.config import MAX_LINKS, PhysicsConfig, check_int
 from masspush.env import ChainEnv
 from masspush.sim.batch import ChainBatch
 from masspush.sim.chain import sample_chain
-from masspush.sim.pushers import IDEAL_PUSHER, pusher_kind
+from masspush.sim.pushers import IDEAL_PUSHER, pusher_field, pusher_kind
 
 
 @dataclass(frozen=True)
@@ -77,7 +77,7 @@ class DataBench:
 
     setting: str = "2link-0.1-1"
     """Named setting of the episodes."""
-    pusher: str = "kuka"
+    pusher: str = pusher_field("kuka")
     """The pusher that pushes them."""
     episodes: int = 1000
     """Episodes to collect."""
@@ -98,8 +98,8 @@ class ArmBench:
 
     links: int = 2
     """Links of the chains (masses in [0.1, 1] kg, the KUKA settings')."""
-    arm: str = "kuka"
-    """The arm: kuka, kuka-far, ur10 or ur10-stationary."""
+    arm: str = pusher_field("kuka", arms_only=True)
+    """The arm."""
     episodes: int = 200
     """Episodes of random pushes for each pusher."""
     workers: int | None = None
@@ -200,7 +200,7 @@ class PPOBench:
 
     setting: str = "2link-1-10"
     """Named setting; the policy learns against its shipped RP predictor."""
-    pusher: str | None = None
+    pusher: str | None = pusher_field()
     """The pusher (default: the setting's)."""
     algos: tuple[str, ...] = ("mlp", "recurrent")
     """Learners to measure."""

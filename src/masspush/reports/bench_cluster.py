@@ -19,7 +19,7 @@ from typing import Any
 from masspush.config import check_int
 from masspush.data.dataset import collect
 from masspush.settings import get_setting
-from masspush.sim.pushers import pusher_kind
+from masspush.sim.pushers import pusher_field, pusher_kind
 
 
 @dataclass(frozen=True)
@@ -29,7 +29,7 @@ class ClusterBench:
 
     setting: str = "2link-0.1-1"
     """Named setting of the episodes."""
-    pusher: str = "kuka"
+    pusher: str = pusher_field("kuka")
     """The pusher that pushes them."""
     episodes: int = 400
     """Episodes of each collection."""

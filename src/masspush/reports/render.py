@@ -22,7 +22,7 @@ from masspush.config import check_int, check_output
 from masspush.env import ChainEnv
 from masspush.settings import get_setting
 from masspush.sim.chain import link_poses
-from masspush.sim.pushers import pusher_kind
+from masspush.sim.pushers import pusher_field, pusher_kind
 
 VIDEO_FPS = 30
 PUSH_FRAME_TIME = 0.004
@@ -37,7 +37,7 @@ class RenderConfig:
 
     setting: str = "2link-0.1-1"
     """Named setting of the chain."""
-    pusher: str = "stiff"
+    pusher: str = pusher_field("stiff")
     """The pusher (its own camera distance)."""
     out: str = "episode.mp4"
     """The video to write: .mp4 or .gif."""

@@ -33,6 +33,7 @@ from masspush.reports.baselines import (
     ship_baselines,
 )
 from masspush.settings import get_setting
+from masspush.sim.pushers import pusher_field, pusher_kind
 
 COLUMNS = ("rp", "rp+", "tp", "tp+")
 
@@ -45,7 +46,7 @@ class TrainJob:
     """Named setting."""
     out: str | None = None
     """Run directory; a rerun resumes it (default: runs/<setting>-<pusher>-train)."""
-    pusher: str | None = None
+    pusher: str | None = pusher_field()
     """The pusher (default: the setting's)."""
     ship: bool = False
     """Ship TP and TP+ into the package (and RP, for a setting with none yet)."""
@@ -57,6 +58,8 @@ class TrainJob:
     'masspush[ray]')."""
 
     def __post_init__(self) -> None:
+        if self.pusher is not None:
+            pusher_kind(self.pusher)
         check_address(self.ray)
 
 
@@ -101,7 +104,7 @@ class ReproduceConfig:
     """all, or a comma-separated list of named settings."""
     table_only: bool = False
     """Only write the table and figures from the runs there are."""
-    pusher: str | None = None
+    pusher: str | None = pusher_field()
     """The pusher (default: each setting's)."""
     ship: bool = False
     """Ship every finished model into the package."""
@@ -111,6 +114,8 @@ class ReproduceConfig:
 
     def __post_init__(self) -> None:
         self.names()  # each named setting exists
+        if self.pusher is not None:
+            pusher_kind(self.pusher)
 
 
 def reproduce(config: ReproduceConfig, recipe: RecipeConfig, root: str | Path = ".") -> list[Path]:

@@ -8,6 +8,7 @@ from masspush.sim.pushers import (
     StiffPusher,
     make_pusher,
     on_batch_path,
+    pusher_field,
     pusher_kind,
 )
 
@@ -33,6 +34,21 @@ def test_the_registry_makes_each_pusher_and_refuses_unknown_ones():
     assert isinstance(arm, ArmPusher) and arm.name == "ur10"
     with pytest.raises(ValueError, match="unknown pusher 'nope'; known pushers"):
         make_pusher("nope")
+
+
+def test_a_pusher_field_carries_the_registrys_names():
+    from dataclasses import dataclass, fields
+
+    @dataclass(frozen=True)
+    class Config:
+        pusher: str | None = pusher_field()
+        arm: str = pusher_field("kuka", arms_only=True)
+
+    assert Config() == Config(None, "kuka")
+    by_name = {f.name: f.metadata["choices"] for f in fields(Config)}
+    assert by_name["pusher"] == PUSHERS
+    assert by_name["arm"] == tuple(n for n in PUSHERS if pusher_kind(n).arm)
+    assert IDEAL_PUSHER not in by_name["arm"]
 
 
 def test_arms_leave_the_batch_path_without_their_compiled_law(monkeypatch):

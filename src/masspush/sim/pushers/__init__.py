@@ -6,6 +6,9 @@ arm scene). A new pusher is a module beside these and one entry in `PUSHER_KINDS
 
 from __future__ import annotations
 
+import dataclasses
+from typing import Any
+
 from masspush.config import PhysicsConfig
 from masspush.sim.pushers import compiled
 from masspush.sim.pushers.arm import ARMS, ArmPusher
@@ -91,6 +94,14 @@ def reach_governor(name: str, physics: PhysicsConfig) -> ReachGovernor | None:
     return None if workspace is None else ReachGovernor(workspace, physics)
 
 
+def pusher_field(default: str | None = None, arms_only: bool = False) -> Any:
+    """A config dataclass field that names a pusher (an arm, where `arms_only`): the known
+    names ride in its metadata (`choices`), so that the command line lists them in the
+    option's help from this registry instead of a list written by hand."""
+    names = tuple(name for name, kind in PUSHER_KINDS.items() if kind.arm or not arms_only)
+    return dataclasses.field(default=default, metadata={"choices": names})
+
+
 def make_pusher(name: str) -> Pusher:
     """A new pusher called `name`, or a ValueError listing the known ones."""
     return pusher_kind(name).make()
@@ -108,6 +119,7 @@ __all__ = [
     "make_pusher",
     "on_batch_path",
     "park",
+    "pusher_field",
     "pusher_kind",
     "reach_governor",
     "tool_radius",
