@@ -22,7 +22,14 @@ import torch
 from torch import nn
 
 from masspush.data import load_dataset
-from masspush.learn import MassPredictor, TrainConfig, load_model, step_inputs, validation_split
+from masspush.learn import (
+    LOSSES,
+    MassPredictor,
+    TrainConfig,
+    load_model,
+    step_inputs,
+    validation_split,
+)
 from masspush.metrics import percentage_error
 
 
@@ -65,7 +72,9 @@ def fit(
     at its best checkpoint (as the recipe keeps the best)."""
     q0, steps, target = data
     val, train = split
-    schedule = TrainConfig(optimizer="adam", steps=args.steps, batch_size=256, lr=args.lr)
+    schedule = TrainConfig(
+        optimizer="adam", steps=args.steps, batch_size=256, lr=args.lr, loss=args.loss
+    )
     torch.manual_seed(seed)
     n_links, q0_dim, step_dim = target.shape[1], q0.shape[1], steps.shape[2]
     if args.wide:
@@ -89,7 +98,7 @@ def fit(
         for group in optimiser.param_groups:
             group["lr"] = schedule.lr_at(step - 1)
         batch = torch.as_tensor(rng.choice(train, size=schedule.batch_size))
-        loss = ((model(q0[batch], steps[batch]) - target[batch, None, :]) ** 2).mean()
+        loss = LOSSES[args.loss](model(q0[batch], steps[batch]) - target[batch, None, :]).mean()
         optimiser.zero_grad()
         loss.backward()
         optimiser.step()
@@ -119,6 +128,7 @@ def main() -> None:
     p.add_argument("--extra", default="", help="data-<i> to train on as well, e.g. 5,6")
     p.add_argument("--wide", type=int, default=0, help="a WidePredictor this wide")
     p.add_argument("--every", type=int, default=5_000)
+    p.add_argument("--loss", choices=tuple(LOSSES), default="mse", help="the training loss")
     p.add_argument(
         "--seeds", default="0", help="train one predictor per seed; with several, also "
         "score the mean of their held-out estimates (an ensemble)"

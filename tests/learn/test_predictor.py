@@ -90,6 +90,24 @@ def test_training_resumes_exactly_where_it_stopped(episodes, tmp_path):
         torch.testing.assert_close(a, b)
 
 
+def test_the_l1_loss_trains_otherwise_and_a_checkpoint_keeps_its_loss(episodes, tmp_path):
+    with pytest.raises(ValueError, match="loss must be one of"):
+        TrainConfig(loss="huber")
+    small = episodes.select(np.arange(len(episodes)) < 200)
+    mse = TrainConfig(optimizer="adam", steps=20, batch_size=8, lr=1e-3, eval_every=10,
+                      checkpoint_every=10)  # fmt: skip
+    a, _ = train_predictor(small, tmp_path / "mse", mse, progress=False)
+    b, summary = train_predictor(small, tmp_path / "l1", replace(mse, loss="l1"), progress=False)
+    assert summary["train_config"]["loss"] == "l1"
+    assert not torch.equal(a.head.weight, b.head.weight)  # same seed and batches, other loss
+    # A checkpoint records the loss as runs before the field did (mse: not at all), and a
+    # run resumed with another loss is refused instead of mixing the two.
+    _run_until(small, tmp_path / "c", replace(mse, steps=40), 10)
+    assert "loss" not in torch.load(tmp_path / "c" / "checkpoint.pt", weights_only=False)["config"]
+    with pytest.raises(ValueError, match="another config"):
+        train_predictor(small, tmp_path / "c", replace(mse, steps=40, loss="l1"), progress=False)
+
+
 def _run_until(episodes, run_dir, config, stop_step):
     """Train with `config` but stop (as if killed) right after the checkpoint at stop_step."""
     import masspush.learn.predictor as predictor

@@ -9,7 +9,12 @@ from masspush.data.dataset import load_dataset
 from masspush.evaluate import EvaluateConfig
 from masspush.learn import recipe as train_module
 from masspush.learn.policy import PolicyConfig
-from masspush.learn.predictor import ModelMismatchError, PredictorEnsemble, load_model
+from masspush.learn.predictor import (
+    ModelMismatchError,
+    PredictorEnsemble,
+    load_model,
+    recorded_config,
+)
 from masspush.learn.recipe import FINAL_FINETUNE, FINETUNE, PREDICTOR, Recipe, RecipeConfig
 from masspush.models import evaluate_model
 from masspush.reports.reproduce import (
@@ -113,7 +118,7 @@ def test_a_short_recipe_resumes_after_interruption_and_beats_the_floor(tmp_path,
     assert load_dataset(run / "data-final")[0].episodes == 300
     assert [h["stage"] for h in state["history"]] == stages
     assert state["final"] == {
-        "episodes": 300, "finetune": asdict(bigger.final_finetune), "members": 1
+        "episodes": 300, "finetune": recorded_config(bigger.final_finetune), "members": 1
     }  # fmt: skip
     assert json.loads((run / "predictor-final" / "config.json").read_text())["train"]["steps"] == 60
     # Resumed without final sizes, the run keeps the ones it recorded.
@@ -149,7 +154,7 @@ def test_a_runs_final_stage_is_kept_unless_other_sizes_are_given(tmp_path):
     # A new run takes the defaults: 4x data-0's episodes, FINAL_FINETUNE.
     fresh = Recipe(SETTING, "stiff", tmp_path / "new", plain, **quiet)._state()
     assert fresh["final"] == {
-        "episodes": 4 * 1500, "finetune": asdict(FINAL_FINETUNE), "members": 1
+        "episodes": 4 * 1500, "finetune": recorded_config(FINAL_FINETUNE), "members": 1
     }  # fmt: skip
 
     recipe = Recipe(SETTING, "stiff", tmp_path, plain, **quiet)
@@ -169,7 +174,7 @@ def test_a_runs_final_stage_is_kept_unless_other_sizes_are_given(tmp_path):
 
     # Made before the record: first_episodes' worth with the `finetune` config. Resumed
     # without final sizes, or with those same sizes, it keeps its final stage.
-    made = {"episodes": 1500, "finetune": asdict(TINY.finetune), "members": 1}
+    made = {"episodes": 1500, "finetune": recorded_config(TINY.finetune), "members": 1}
     for config in (plain, replace(plain, final_episodes=1500, final_finetune=TINY.finetune)):
         kept = state_of(config)
         assert kept["timings"] == done and kept["history"] == history
@@ -192,10 +197,15 @@ def test_a_runs_final_stage_is_kept_unless_other_sizes_are_given(tmp_path):
     assert averaged["timings"] == {"policy-2": 9.0, "data-final": 30.0}
     assert "data-final" not in averaged.get("carried", {})
     assert logs[-1].endswith(f"at lr {lr:g}, 3 predictors averaged")
+    # Another loss redoes the training only, and says so.
+    l1 = state_of(replace(plain, final_finetune=replace(TINY.finetune, loss="l1")))
+    assert l1["final"]["finetune"] == {**made["finetune"], "loss": "l1"}
+    assert l1["timings"] == {"policy-2": 9.0, "data-final": 30.0}
+    assert logs[-1].endswith(f"at lr {lr:g}, l1 loss")
     # A run that recorded its final stage before ensembles trained one predictor.
     recipe.state_path.write_text(json.dumps({
         "config": old, "timings": dict(done), "history": list(history),
-        "final": {"episodes": 1500, "finetune": asdict(TINY.finetune)},
+        "final": {"episodes": 1500, "finetune": recorded_config(TINY.finetune)},
     }))  # fmt: skip
     kept = Recipe(SETTING, "stiff", tmp_path, plain, log=logs.append)._state()
     assert kept["final"] == made and kept["timings"] == done
@@ -231,6 +241,19 @@ def test_a_run_made_before_a_policy_field_resumes_only_with_that_fields_old_valu
         recipe._state()
     # The stiff pusher always ran in lockstep: the field never enters its runs' identity.
     assert "lockstep_arms" not in recorded("stiff", TINY.policy)[1]["policy"]
+
+
+def test_a_run_made_before_the_loss_field_resumes_with_mse_only(tmp_path):
+    import json
+
+    recipe = Recipe(SETTING, "stiff", tmp_path, TINY, progress=False)
+    old = recipe._identity()
+    assert "loss" not in old["predictor"] and "loss" not in old["finetune"]  # as runs said
+    recipe.state_path.write_text(json.dumps({"config": old, "timings": {}, "history": []}))
+    assert recipe._state()["config"] == old
+    l1 = replace(TINY, predictor=replace(TINY.predictor, loss="l1"))
+    with pytest.raises(ValueError, match=r"\(predictor.loss\); use another --out"):
+        Recipe(SETTING, "stiff", tmp_path, l1, progress=False)._state()
 
 
 def test_bad_recipe_configs_are_refused():

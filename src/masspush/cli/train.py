@@ -15,7 +15,7 @@ def _predictor_options(p: argparse.ArgumentParser) -> None:
 
     add_fields(p, PredictorRun)
     add_fields(p, TrainConfig, only=("features", "optimizer", "steps", "batch_size", "lr",
-                                     "seed"))  # fmt: skip
+                                     "loss", "seed"))  # fmt: skip
 
 
 def _predictor(args: argparse.Namespace) -> int:
@@ -73,6 +73,12 @@ def _recipe_options(p: argparse.ArgumentParser) -> None:
         help="Learning rate of TP+'s fine-tuning, likewise (default: the run's own; "
         f"{FINAL_FINETUNE.lr:g} for a new run)",
     )
+    p.add_argument(
+        "--final-loss",
+        default=argparse.SUPPRESS,
+        help="Loss of TP+'s fine-tuning, likewise: mse (the paper's) or l1 (the metric's) "
+        f"(default: the run's own; {FINAL_FINETUNE.loss} for a new run)",
+    )
 
 
 def _recipe(args: argparse.Namespace):
@@ -82,7 +88,9 @@ def _recipe(args: argparse.Namespace):
     from masspush.learn.recipe import FINAL_FINETUNE, RecipeConfig
 
     policy = build(PolicyConfig, args, prefix="policy_")
-    given = {k: getattr(args, f"final_{k}") for k in ("steps", "lr") if f"final_{k}" in args}
+    given = {
+        k: getattr(args, f"final_{k}") for k in ("steps", "lr", "loss") if f"final_{k}" in args
+    }
     if not given:
         return build(RecipeConfig, args, policy=policy)
     try:  # what is not given is a new run's: the recorded config is not known here

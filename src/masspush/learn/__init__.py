@@ -7,8 +7,8 @@ The names below are its public API (what experiments/ may import)."""
 from masspush._exports import lazy, names
 
 EXPORTS = {
-    "predictor": ("FAST", "MassPredictor", "Predictor", "PredictorEnsemble", "TrainConfig",
-                  "load_model", "save_model", "step_inputs", "train_ensemble",
+    "predictor": ("FAST", "LOSSES", "MassPredictor", "Predictor", "PredictorEnsemble",
+                  "TrainConfig", "load_model", "save_model", "step_inputs", "train_ensemble",
                   "train_predictor", "validation_split"),
     "features": ("history_dim", "history_features", "paper_reward"),
     "policy": ("LearnedPolicy", "PolicyConfig", "PushPolicyEnv", "model_policy", "train_policy"),

@@ -183,6 +183,10 @@ class PredictorEnsemble(Predictor):
         return torch.logsumexp(logs, dim=0) - math.log(len(self.members))
 
 
+LOSSES = {"mse": torch.square, "l1": torch.abs}
+"""The training losses by name, applied to each output's error and averaged."""
+
+
 @dataclass(frozen=True)
 class TrainConfig:
     """How to train a predictor; the defaults are the paper's [code]."""
@@ -205,10 +209,16 @@ class TrainConfig:
     """Steps between checkpoints (a killed run resumes from the last)."""
     seed: int = 0
     """Seed of the initial weights, the validation split and the batches."""
+    loss: str = "mse"
+    """"mse" (the paper's: squared error, whose best estimate is the posterior mean) or "l1"
+    (absolute error, whose best estimate is the posterior median: the paper's percentage
+    error is the batch's mean absolute error, scaled), over all K step outputs."""
 
     def __post_init__(self) -> None:
         if self.optimizer not in ("sgd", "adam"):
             raise ValueError(f"optimizer must be 'sgd' or 'adam', got {self.optimizer!r}")
+        if self.loss not in LOSSES:
+            raise ValueError(f"loss must be one of {list(LOSSES)}, got {self.loss!r}")
         for name in ("steps", "batch_size", "eval_every", "checkpoint_every"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
@@ -221,6 +231,21 @@ class TrainConfig:
 
     def lr_at(self, step: int) -> float:
         return self.lr * 0.5 ** min(3, (4 * step) // self.steps)
+
+
+ADDED_TRAIN_FIELDS = {"loss": "mse"}
+"""TrainConfig fields added after runs were made, with the value every run before them used:
+a recorded config leaves them out at that value, so an old run still resumes (and one made
+otherwise does not pass for it)."""
+
+
+def recorded_config(config: TrainConfig) -> dict[str, Any]:
+    """`config` as runs record it: without the fields added since, where at their old value."""
+    recorded = asdict(config)
+    for name, value in ADDED_TRAIN_FIELDS.items():
+        if recorded[name] == value:
+            del recorded[name]
+    return recorded
 
 
 FAST = TrainConfig(optimizer="adam", steps=20_000, batch_size=256, lr=3e-3)
@@ -423,7 +448,7 @@ def train_predictor(
     ckpt = run / "checkpoint.pt"
     if ckpt.exists():
         state = torch.load(ckpt, map_location="cpu", weights_only=False)
-        if state["config"] != asdict(config):
+        if state["config"] != recorded_config(config):
             raise ValueError(f"{run} holds a run with another config; use another run directory")
         model.load_state_dict(state["model"])
         optimiser.load_state_dict(state["optimiser"])
@@ -453,14 +478,14 @@ def train_predictor(
             group["lr"] = config.lr_at(step)
         batch = torch.as_tensor(rng.choice(train_idx, size=config.batch_size))
         pred = model(tensors["q0"][batch], tensors["steps"][batch])
-        loss = ((pred - tensors["target"][batch, None, :]) ** 2).mean()
+        loss = LOSSES[config.loss](pred - tensors["target"][batch, None, :]).mean()
         optimiser.zero_grad()
         loss.backward()
         optimiser.step()
         step += 1
         bar.update(1)
         if step % 100 == 0:
-            writer.add_scalar("losses/train_mse", loss.item(), step)
+            writer.add_scalar(f"losses/train_{config.loss}", loss.item(), step)
             writer.add_scalar("charts/learning_rate", config.lr_at(step), step)
         if step % config.eval_every == 0 or step == config.steps:
             val = _validation(model, tensors, val_idx)
@@ -487,7 +512,7 @@ def train_predictor(
                     "torch_rng": torch.get_rng_state(),
                     "step": step,
                     "history": history,
-                    "config": asdict(config),
+                    "config": recorded_config(config),
                     "best": best,
                 },
                 str(ckpt) + ".tmp",

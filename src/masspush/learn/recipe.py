@@ -44,6 +44,7 @@ from masspush.learn.predictor import (
     FAST,
     TrainConfig,
     load_model,
+    recorded_config,
     train_ensemble,
     train_predictor,
 )
@@ -197,9 +198,9 @@ class Recipe:
             recorded["episodes"] if recorded else cfg.episodes(self.setting.n_links)[2]
         )
         if cfg.final_finetune is not None:
-            finetune = asdict(cfg.final_finetune)
+            finetune = recorded_config(cfg.final_finetune)
         else:
-            finetune = recorded["finetune"] if recorded else asdict(FINAL_FINETUNE)
+            finetune = recorded["finetune"] if recorded else recorded_config(FINAL_FINETUNE)
         members = cfg.final_members or (recorded["members"] if recorded else 1)
         return {"episodes": episodes, "finetune": finetune, "members": members}
 
@@ -213,9 +214,10 @@ class Recipe:
         def sizes(final: dict[str, Any]) -> str:
             tune = final["finetune"]
             averaged = f", {final['members']} predictors averaged" if final["members"] > 1 else ""
+            loss = f", {tune['loss']} loss" if "loss" in tune else ""
             return (
                 f"{final['episodes']} episodes, {tune['steps']} steps at lr {tune['lr']:g}"
-                f"{averaged}"
+                f"{loss}{averaged}"
             )
 
         self.log(
@@ -247,6 +249,9 @@ class Recipe:
         for name, value in ADDED_POLICY_FIELDS.items():
             if name in policy and policy[name] == value:
                 del policy[name]  # as runs made before the field existed say it
+        for name in ("predictor", "finetune", "final_finetune"):
+            given = getattr(self.config, name)
+            identity[name] = None if given is None else recorded_config(given)
         return identity
 
     def _save(self, state: dict[str, Any]) -> None:
