@@ -98,7 +98,7 @@ def fit(
         for group in optimiser.param_groups:
             group["lr"] = schedule.lr_at(step - 1)
         batch = torch.as_tensor(rng.choice(train, size=schedule.batch_size))
-        loss = LOSSES[args.loss](model(q0[batch], steps[batch]) - target[batch, None, :]).mean()
+        loss = LOSSES[schedule.loss](model(q0[batch], steps[batch]) - target[batch, None, :]).mean()
         optimiser.zero_grad()
         loss.backward()
         optimiser.step()
