@@ -19,7 +19,6 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from torch import nn
 
 from masspush.data import load_dataset
 from masspush.learn import (
@@ -31,31 +30,6 @@ from masspush.learn import (
     validation_split,
 )
 from masspush.metrics import percentage_error
-
-
-class WidePredictor(MassPredictor):
-    """The paper's layout with every layer `width` wide, two LSTM layers, and a hidden layer
-    before each output: the probe for the predictor's capacity."""
-
-    def __init__(self, n_links: int, q0_dim: int, step_dim: int, width: int):
-        super().__init__(n_links, q0_dim, step_dim, "relative")
-        self.width = width
-        self.embed = nn.Sequential(nn.Linear(step_dim, width), nn.ReLU(), nn.Linear(width, width))
-        self.lstm = nn.LSTM(width, width, num_layers=2, batch_first=True)
-        self.init_h = nn.Linear(q0_dim, 2 * width)
-        self.init_c = nn.Linear(q0_dim, 2 * width)
-        self.head = nn.Sequential(nn.Linear(width, width), nn.ReLU(), nn.Linear(width, n_links))
-
-    def features(self, q0: torch.Tensor, steps: torch.Tensor) -> torch.Tensor:
-        q0 = (q0 - self.q0_mean) / self.q0_std
-        steps = (steps - self.step_mean) / self.step_std
-
-        def state(layer: nn.Linear) -> torch.Tensor:
-            x = torch.relu(layer(q0)).view(len(q0), 2, self.width)
-            return x.transpose(0, 1).contiguous()
-
-        out, _ = self.lstm(torch.relu(self.embed(steps)), (state(self.init_h), state(self.init_c)))
-        return out
 
 
 def inputs(directory: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -77,10 +51,7 @@ def fit(
     )
     torch.manual_seed(seed)
     n_links, q0_dim, step_dim = target.shape[1], q0.shape[1], steps.shape[2]
-    if args.wide:
-        model: MassPredictor = WidePredictor(n_links, q0_dim, step_dim, args.wide)
-    else:
-        model = MassPredictor(n_links, q0_dim, step_dim, "relative")
+    model = MassPredictor(n_links, q0_dim, step_dim, "relative", args.wide or None)
     if init is not None:
         model.load_state_dict(load_model(init)[0].state_dict())
     else:
@@ -126,7 +97,12 @@ def main() -> None:
     p.add_argument("--lr", type=float, default=3e-3)
     p.add_argument("--init", help="start from predictor-<INIT> of the run (default: scratch)")
     p.add_argument("--extra", default="", help="data-<i> to train on as well, e.g. 5,6")
-    p.add_argument("--wide", type=int, default=0, help="a WidePredictor this wide")
+    p.add_argument(
+        "--wide",
+        type=int,
+        default=0,
+        help="a predictor this wide (TrainConfig.width; 0: the paper's)",
+    )
     p.add_argument("--every", type=int, default=5_000)
     p.add_argument("--loss", choices=tuple(LOSSES), default="mse", help="the training loss")
     p.add_argument(

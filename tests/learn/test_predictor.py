@@ -44,6 +44,50 @@ def test_architecture_is_the_papers():
     torch.testing.assert_close(out.sum(-1), torch.ones(5, 3))
 
 
+def test_a_width_makes_every_layer_that_wide_with_two_lstm_layers(tmp_path):
+    torch.manual_seed(0)
+    model = MassPredictor(3, 8, 12, "relative", width=32)
+    assert (model.lstm.hidden_size, model.lstm.num_layers) == (32, 2)
+    assert model.init_h.out_features == 2 * 32  # one initial state per LSTM layer
+    q0, steps = torch.randn(5, 8), torch.randn(5, 4, 12)
+    with torch.no_grad():
+        features, out = model.features(q0, steps), model(q0, steps)
+    assert features.shape == (5, 4, 32) and out.shape == (5, 4, 3)
+    torch.testing.assert_close(out.sum(-1), torch.ones(5, 4))
+    # The file says the width; a paper-size file says nothing, as files made before.
+    save_model(tmp_path / "w.pt", model, {})
+    loaded, _ = load_model(tmp_path / "w.pt")
+    assert loaded.width == 32 and torch.load(tmp_path / "w.pt")["arch"]["width"] == 32
+    with torch.no_grad():
+        torch.testing.assert_close(loaded(q0, steps), out)
+    save_model(tmp_path / "p.pt", MassPredictor(3, 8, 12), {})
+    assert "width" not in torch.load(tmp_path / "p.pt")["arch"]
+    assert load_model(tmp_path / "p.pt")[0].width is None
+    # Members of one ensemble share a width (its file holds one architecture).
+    with pytest.raises(ValueError, match="at one width"):
+        PredictorEnsemble([model, MassPredictor(3, 8, 12, "relative")])
+    wide = PredictorEnsemble([model, MassPredictor(3, 8, 12, "relative", width=32)])
+    save_model(tmp_path / "e.pt", wide, {})
+    assert load_model(tmp_path / "e.pt")[0].width == 32
+
+
+def test_the_width_is_validated_and_kept_out_of_old_records(episodes, tmp_path):
+    from masspush.learn.predictor import recorded_config
+
+    for bad in (0, 7, 2000):
+        with pytest.raises(ValueError, match=f"width must be in 8..1024.*got {bad}"):
+            TrainConfig(width=bad)
+    assert "width" not in recorded_config(TrainConfig())  # runs before the field resume
+    assert recorded_config(TrainConfig(width=64))["width"] == 64
+    small = episodes.select(np.arange(len(episodes)) < 100)
+    config = TrainConfig(optimizer="adam", steps=4, batch_size=8, eval_every=2, width=16,
+                         features="relative")  # fmt: skip
+    model, summary = train_predictor(small, tmp_path / "w", config, progress=False)
+    assert model.width == 16 and summary["train_config"]["width"] == 16
+    with pytest.raises(ValueError, match=r"keeps the network's width \(16\), not None"):
+        train_predictor(small, tmp_path / "x", replace(config, width=None), False, init=model)
+
+
 @pytest.mark.slow
 def test_predictor_overfits_a_tiny_dataset(episodes, tmp_path):
     tiny = episodes.select(np.arange(len(episodes)) < 24)

@@ -147,6 +147,19 @@ def test_a_short_recipe_resumes_after_interruption_and_beats_the_floor(tmp_path,
     assert result["mae"] == pytest.approx(state["history"][-1]["mae"])
     assert "TP+ on 0.3k, 0.06k steps, 2 averaged" in recipe_summary(state, SETTING.name)
 
+    # A wide TP+ alone trains from scratch too: predictor-M's weights cannot seed it.
+    real_train, starts = train_module.train_predictor, []
+
+    def spy_train(*args, **kwargs):
+        starts.append(kwargs.get("init"))
+        return real_train(*args, **kwargs)
+
+    monkeypatch.setattr(train_module, "train_predictor", spy_train)
+    wide = replace(plain, final_members=1, final_finetune=replace(bigger.final_finetune, width=16))
+    state = Recipe(SETTING, "stiff", run, wide, progress=False).run()
+    assert starts == [None] and load_model(run / "predictor-final" / "predictor.pt")[0].width == 16
+    assert "TP+ on 0.3k, 0.06k steps, 16 wide" in recipe_summary(state, SETTING.name)
+
 
 def test_a_runs_final_stage_is_kept_unless_other_sizes_are_given(tmp_path):
     plain = replace(TINY, final_episodes=None, final_finetune=None)
@@ -202,6 +215,11 @@ def test_a_runs_final_stage_is_kept_unless_other_sizes_are_given(tmp_path):
     assert l1["final"]["finetune"] == {**made["finetune"], "loss": "l1"}
     assert l1["timings"] == {"policy-2": 9.0, "data-final": 30.0}
     assert logs[-1].endswith(f"at lr {lr:g}, l1 loss")
+    # So does another width.
+    wide = state_of(replace(plain, final_finetune=replace(TINY.finetune, width=32)))
+    assert wide["final"]["finetune"] == {**made["finetune"], "width": 32}
+    assert wide["timings"] == {"policy-2": 9.0, "data-final": 30.0}
+    assert logs[-1].endswith(f"at lr {lr:g}, 32 wide")
     # A run that recorded its final stage before ensembles trained one predictor.
     recipe.state_path.write_text(json.dumps({
         "config": old, "timings": dict(done), "history": list(history),

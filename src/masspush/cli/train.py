@@ -15,7 +15,7 @@ def _predictor_options(p: argparse.ArgumentParser) -> None:
 
     add_fields(p, PredictorRun)
     add_fields(p, TrainConfig, only=("features", "optimizer", "steps", "batch_size", "lr",
-                                     "loss", "seed"))  # fmt: skip
+                                     "loss", "width", "seed"))  # fmt: skip
 
 
 def _predictor(args: argparse.Namespace) -> int:
@@ -79,6 +79,13 @@ def _recipe_options(p: argparse.ArgumentParser) -> None:
         help="Loss of TP+'s fine-tuning, likewise: mse (the paper's) or l1 (the metric's) "
         f"(default: the run's own; {FINAL_FINETUNE.loss} for a new run)",
     )
+    p.add_argument(
+        "--final-width",
+        type=int,
+        default=argparse.SUPPRESS,
+        help="TP+'s network, likewise: every layer this wide, two LSTM layers, trained from "
+        "scratch (default: the run's own; the paper's FC 128 / LSTM 64 for a new run)",
+    )
 
 
 def _recipe(args: argparse.Namespace):
@@ -89,7 +96,9 @@ def _recipe(args: argparse.Namespace):
 
     policy = build(PolicyConfig, args, prefix="policy_")
     given = {
-        k: getattr(args, f"final_{k}") for k in ("steps", "lr", "loss") if f"final_{k}" in args
+        k: getattr(args, f"final_{k}")
+        for k in ("steps", "lr", "loss", "width")
+        if f"final_{k}" in args
     }
     if not given:
         return build(RecipeConfig, args, policy=policy)

@@ -114,17 +114,37 @@ class Predictor(nn.Module):
 
 
 class MassPredictor(Predictor):
-    """The paper's predictor, with input normalisation built in."""
+    """The paper's predictor, with input normalisation built in; with a `width`, the same
+    layout wider and deeper (every layer `width` wide, two LSTM layers, a hidden layer
+    before the input and the output): the paper's size stops at what 128k episodes teach
+    it, a wider one gains with more (docs/notebook/2026-12-01-arm-speed.md)."""
 
-    def __init__(self, n_links: int, q0_dim: int, step_dim: int, features: str = "paper"):
+    def __init__(
+        self, n_links: int, q0_dim: int, step_dim: int, features: str = "paper",
+        width: int | None = None,
+    ):  # fmt: skip
         super().__init__()
         self.n_links, self.q0_dim, self.step_dim = n_links, q0_dim, step_dim
-        self.features_kind = features
-        self.embed = nn.Linear(step_dim, 128)
-        self.lstm = nn.LSTM(128, 64, batch_first=True)
-        self.init_h = nn.Linear(q0_dim, 64)
-        self.init_c = nn.Linear(q0_dim, 64)
-        self.head = nn.Linear(64, n_links)
+        self.features_kind, self.width = features, width
+        # Made in this order whatever the width: the weights' order is the model's
+        # fingerprint (`predictor_digest`), which the shipped Dirichlet heads record.
+        if width is None:  # the paper's: FC 128, LSTM 64 [paper-details]
+            self.layers, self.hidden = 1, 64
+            self.embed: nn.Module = nn.Linear(step_dim, 128)
+            self.lstm = nn.LSTM(128, 64, batch_first=True)
+        else:
+            self.layers, self.hidden = 2, width
+            self.embed = nn.Sequential(
+                nn.Linear(step_dim, width), nn.ReLU(), nn.Linear(width, width)
+            )
+            self.lstm = nn.LSTM(width, width, num_layers=2, batch_first=True)
+        self.init_h = nn.Linear(q0_dim, self.layers * self.hidden)
+        self.init_c = nn.Linear(q0_dim, self.layers * self.hidden)
+        self.head: nn.Module = (
+            nn.Linear(64, n_links)
+            if width is None
+            else nn.Sequential(nn.Linear(width, width), nn.ReLU(), nn.Linear(width, n_links))
+        )
         for name, dim in (("q0", q0_dim), ("step", step_dim)):
             self.register_buffer(f"{name}_mean", torch.zeros(dim))
             self.register_buffer(f"{name}_std", torch.ones(dim))
@@ -136,12 +156,16 @@ class MassPredictor(Predictor):
             getattr(self, f"{name}_std").copy_(torch.as_tensor(np.maximum(x.std(0), 1e-6)))
 
     def features(self, q0: torch.Tensor, steps: torch.Tensor) -> torch.Tensor:
-        """(E, K, 64) LSTM outputs: the predictor's features after each push."""
+        """(E, K, 64) LSTM outputs (E, K, width with a width): the predictor's features after
+        each push."""
         q0 = (q0 - self.q0_mean) / self.q0_std
         steps = (steps - self.step_mean) / self.step_std
-        h0 = torch.relu(self.init_h(q0)).unsqueeze(0)
-        c0 = torch.relu(self.init_c(q0)).unsqueeze(0)
-        out, _ = self.lstm(torch.relu(self.embed(steps)), (h0, c0))
+
+        def state(layer: nn.Linear) -> torch.Tensor:  # (layers, E, hidden), as nn.LSTM takes
+            x = torch.relu(layer(q0)).view(len(q0), self.layers, self.hidden)
+            return x.transpose(0, 1).contiguous()
+
+        out, _ = self.lstm(torch.relu(self.embed(steps)), (state(self.init_h), state(self.init_c)))
         return out
 
     def estimate(self, features: torch.Tensor) -> torch.Tensor:
@@ -161,10 +185,12 @@ class PredictorEnsemble(Predictor):
         super().__init__()
         if len(members) < 2:
             raise ValueError(f"an ensemble needs at least 2 predictors, got {len(members)}")
-        shape = {(m.n_links, m.q0_dim, m.step_dim, m.features_kind) for m in members}
+        shape = {(m.n_links, m.q0_dim, m.step_dim, m.features_kind, m.width) for m in members}
         if len(shape) > 1:
-            raise ValueError(f"an ensemble's predictors must read the same inputs, got {shape}")
-        ((self.n_links, self.q0_dim, self.step_dim, self.features_kind),) = shape
+            raise ValueError(
+                f"an ensemble's predictors must read the same inputs at one width, got {shape}"
+            )
+        ((self.n_links, self.q0_dim, self.step_dim, self.features_kind, self.width),) = shape
         self.members = nn.ModuleList(members)
 
     def features(self, q0: torch.Tensor, steps: torch.Tensor) -> torch.Tensor:
@@ -213,6 +239,10 @@ class TrainConfig:
     """"mse" (the paper's: squared error, whose best estimate is the posterior mean) or "l1"
     (absolute error, whose best estimate is the posterior median: the paper's percentage
     error is the batch's mean absolute error, scaled), over all K step outputs."""
+    width: int | None = None
+    """The network's width: unset, the paper's (FC 128, LSTM 64); N, every layer N wide and
+    two LSTM layers (`MassPredictor`), which learns more from a few hundred thousand
+    episodes."""
 
     def __post_init__(self) -> None:
         if self.optimizer not in ("sgd", "adam"):
@@ -222,6 +252,8 @@ class TrainConfig:
         for name in ("steps", "batch_size", "eval_every", "checkpoint_every"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
+        if self.width is not None and not 8 <= self.width <= 1024:
+            raise ValueError(f"width must be in 8..1024 (or None: the paper's), got {self.width}")
         if not 0 < self.lr < 10:
             raise ValueError(f"lr must be in (0, 10), got {self.lr}")
         if not 0 <= self.validation_fraction < 0.5:
@@ -233,7 +265,7 @@ class TrainConfig:
         return self.lr * 0.5 ** min(3, (4 * step) // self.steps)
 
 
-ADDED_TRAIN_FIELDS = {"loss": "mse"}
+ADDED_TRAIN_FIELDS = {"loss": "mse", "width": None}
 """TrainConfig fields added after runs were made, with the value every run before them used:
 a recorded config leaves them out at that value, so an old run still resumes (and one made
 otherwise does not pass for it)."""
@@ -319,6 +351,8 @@ def save_model(path: str | os.PathLike, model: Predictor, meta: dict[str, Any]) 
     """A self-describing model file: weights, architecture, and what produced it."""
     arch = {"n_links": model.n_links, "q0_dim": model.q0_dim, "step_dim": model.step_dim,
             "features": model.features_kind}  # fmt: skip
+    if model.width is not None:  # left out at the paper's size: files as before
+        arch["width"] = model.width
     ensemble = isinstance(model, PredictorEnsemble)
     if ensemble:
         arch["members"] = len(model.members)
@@ -433,9 +467,13 @@ def train_predictor(
 
     if init is not None and not isinstance(init, MassPredictor):
         raise ValueError("fine-tuning starts from one predictor, not an ensemble")
+    if init is not None and init.width != config.width:
+        raise ValueError(
+            f"fine-tuning keeps the network's width ({init.width}), not {config.width}"
+        )
     torch.manual_seed(config.seed)
     n_links = target.shape[1]
-    model = MassPredictor(n_links, q0.shape[1], steps.shape[2], config.features)
+    model = MassPredictor(n_links, q0.shape[1], steps.shape[2], config.features, config.width)
     if init is not None:
         model.load_state_dict(init.state_dict())
     else:

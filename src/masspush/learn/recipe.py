@@ -8,7 +8,8 @@
     data-final      rollouts of the deterministic policy-M
     predictor-final predictor-M fine-tuned on data-final (with `final_members` N > 1: N
                     predictors trained from scratch on it with seeds seed..seed+N-1,
-                    their estimates averaged)
+                    their estimates averaged; a `width` other than the paper's in
+                    `final_finetune` trains from scratch too)
 
 TP is predictor-1 with policy-1, TP+ is predictor-final with policy-M [paper, Sec. 4.1].
 Every stage writes its result into the run directory and is skipped when it is there, and
@@ -215,9 +216,10 @@ class Recipe:
             tune = final["finetune"]
             averaged = f", {final['members']} predictors averaged" if final["members"] > 1 else ""
             loss = f", {tune['loss']} loss" if "loss" in tune else ""
+            width = f", {tune['width']} wide" if "width" in tune else ""
             return (
                 f"{final['episodes']} episodes, {tune['steps']} steps at lr {tune['lr']:g}"
-                f"{loss}{averaged}"
+                f"{loss}{width}{averaged}"
             )
 
         self.log(
@@ -406,7 +408,8 @@ class Recipe:
             # scratch; docs/notebook/2026-12-01-arm-speed.md).
             train_ensemble(episodes, out, train, members, meta, self.progress)
         else:
-            start = load_model(init)[0] if init is not None else None
+            # A network of another width than predictor-M's cannot start from its weights.
+            start = load_model(init)[0] if init is not None and train.width is None else None
             train_predictor(episodes, out, train, meta, progress=self.progress, init=start)
 
     def _evaluate(self, state: dict[str, Any], i: int | str) -> None:

@@ -322,14 +322,17 @@ def write_csv(rows: list[dict], path: Path) -> None:
 
 def recipe_summary(state: dict[str, Any], setting: str) -> str:
     """A run's sizes in a few words: meta-iterations x PPO pushes, TP+'s episodes,
-    fine-tuning steps and, where several, predictors averaged."""
+    fine-tuning steps, a width other than the paper's and, where several, predictors
+    averaged."""
     config = state["config"]
     final = recorded_final(state, get_setting(setting).n_links)
+    width = final["finetune"].get("width")
+    wide = f", {width} wide" if width is not None else ""
     averaged = f", {final['members']} averaged" if final["members"] > 1 else ""
     return (
         f"{config['meta_iterations']} x {config['policy']['steps'] / 1000:g}k PPO, "
         f"TP+ on {final['episodes'] / 1000:g}k, {final['finetune']['steps'] / 1000:g}k steps"
-        f"{averaged}"
+        f"{wide}{averaged}"
     )
 
 
