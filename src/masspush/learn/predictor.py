@@ -253,7 +253,7 @@ class TrainConfig:
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         if self.width is not None and not 8 <= self.width <= 1024:
-            raise ValueError(f"width must be in 8..1024 (or None: the paper's), got {self.width}")
+            raise ValueError(f"width must be in 8..1024 (or unset: the paper's), got {self.width}")
         if not 0 < self.lr < 10:
             raise ValueError(f"lr must be in (0, 10), got {self.lr}")
         if not 0 <= self.validation_fraction < 0.5:
