@@ -46,12 +46,11 @@ def fit(
     at its best checkpoint (as the recipe keeps the best)."""
     q0, steps, target = data
     val, train = split
-    schedule = TrainConfig(
-        optimizer="adam", steps=args.steps, batch_size=256, lr=args.lr, loss=args.loss
-    )
+    schedule = TrainConfig(optimizer="adam", steps=args.steps, batch_size=256, lr=args.lr,
+                           loss=args.loss, width=args.wide or None)  # fmt: skip
     torch.manual_seed(seed)
     n_links, q0_dim, step_dim = target.shape[1], q0.shape[1], steps.shape[2]
-    model = MassPredictor(n_links, q0_dim, step_dim, "relative", args.wide or None)
+    model = MassPredictor(n_links, q0_dim, step_dim, "relative", schedule.width)
     if init is not None:
         model.load_state_dict(load_model(init)[0].state_dict())
     else:
@@ -122,6 +121,10 @@ def main() -> None:
         sys.exit("--init starts from a recipe's predictor, which is not wide")
     if args.steps < 1 or args.every < 1 or not 0 < args.lr < 1:
         sys.exit("--steps and --every must be >= 1, --lr in (0, 1)")
+    try:  # the width's bounds are TrainConfig's; checked before the episodes load
+        TrainConfig(width=args.wide or None)
+    except ValueError as err:
+        sys.exit(f"--wide: {err}")
     try:
         seeds = [int(s) for s in args.seeds.split(",")]
     except ValueError:
