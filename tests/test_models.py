@@ -21,6 +21,7 @@ def test_unknown_models_are_clear_errors(model_file, tmp_path, monkeypatch):
 
 def test_every_shipped_model_loads_by_name_with_its_policy():
     from masspush.learn.policy import model_policy
+    from masspush.learn.push_density import PUSH_DENSITY_FILE, load_push_density
     from masspush.learn.uncertainty import load_head
     from masspush.settings import KNOWN_SETTINGS, SETTINGS
 
@@ -29,6 +30,9 @@ def test_every_shipped_model_loads_by_name_with_its_policy():
             assert (SHIPPED_DIR / name / f"{model}.pt").exists(), (name, model)
     for name in KNOWN_SETTINGS:
         for path in sorted((SHIPPED_DIR / name).glob("*.pt")):
+            if path.name == PUSH_DENSITY_FILE:  # the filter's learned likelihood
+                assert load_push_density(path).meta["setting"] == name
+                continue
             if path.name.endswith(".dirichlet.pt"):  # fitted on the predictor it ships beside
                 predictor, _ = load_model(path.with_name(path.name.replace(".dirichlet", "")))
                 load_head(path, name, predictor)
@@ -76,3 +80,22 @@ def test_the_real_setups_learned_policy_keeps_the_chain_within_the_robots_reach(
             lost += episode.failure in REACH_FAILURES
         robot.close()
         assert lost <= 2, f"{lost} of 40 chains lost over {runs} run(s)"  # at most 5 %
+
+
+def test_a_shipped_push_density_is_the_filter_s_default_likelihood():
+    from masspush.models import load_estimator
+    from masspush.settings import get_setting
+
+    kuka = get_setting("2link-0.1-1")  # ships push-density.pt
+    learned = load_estimator("bayes", kuka, progress=False)
+    assert learned.config.likelihood == "learned" and learned.density is not None
+    assert learned.config.density is None  # recorded as the shipped one
+    simulated = load_estimator("bayes", kuka, bayes={"likelihood": "simulator"}, progress=False)
+    assert simulated.config.likelihood == "simulator" and simulated.density is None
+    # trained for the setting's pusher only: another pusher gets the simulator
+    other = load_estimator("bayes-random", kuka, pusher="stiff", progress=False)
+    assert other.config.likelihood == "simulator"
+    stiff = load_estimator("bayes", get_setting("2link-1-10"), progress=False)  # ships none
+    assert stiff.config.likelihood == "simulator"
+    with pytest.raises(ValueError, match="no shipped push density"):
+        load_estimator("bayes", get_setting("2link-1-10"), bayes={"likelihood": "learned"})

@@ -19,11 +19,12 @@ from typing import Any
 
 from masspush.bayes.estimator import BAYES_MODELS, BayesEstimator
 from masspush.cluster.pool import open_pool
-from masspush.config import check_match, check_output
+from masspush.config import EnvConfig, check_match, check_output
 from masspush.evaluate import Estimator, EvalResult, EvaluateConfig, evaluate
 from masspush.learn.estimator import PredictorEstimator
 from masspush.learn.policy import model_policy, strip_policy
 from masspush.learn.predictor import Predictor, load_model, save_model
+from masspush.learn.push_density import PUSH_DENSITY_FILE, density_for
 from masspush.learn.uncertainty import (
     HeadConfig,
     StaleHeadError,
@@ -77,11 +78,33 @@ def load_estimator(
     bayes: dict[str, Any] | None = None, progress: bool = True, allow_mismatch: bool = False,
 ) -> Estimator:  # fmt: skip
     """The estimator called `model` for `setting`: the particle filter (bayes,
-    bayes-random; its configuration changed by `bayes`, `BayesConfig` fields), or a
+    bayes-random; its configuration changed by `bayes`, `BayesConfig` fields; with the
+    setting's shipped push density as its likelihood where there is one and the pusher is
+    the setting's, unless `bayes` says likelihood=simulator), or a
     predictor with its policy (a shipped name or a model file). `pusher` overrides the
     pusher the model was made for."""
     if str(model) in BAYES_MODELS:
-        return BayesEstimator(setting, str(model), pusher, overrides=bayes, progress=progress)
+        bayes, density = dict(bayes or {}), None
+        shipped = shipped_file(setting.name, Path(PUSH_DENSITY_FILE).stem)
+        if "likelihood" not in bayes and shipped.exists() and pusher in (None, setting.pusher):
+            # A shipped density is the setting's default likelihood: in the KUKA cells it
+            # halves the error of simulating the arm per particle, at a twentieth of the time
+            # (docs/notebook/2026-12-04-learned-likelihood.md).
+            bayes["likelihood"] = "learned"
+        if bayes.get("likelihood") == "learned":
+            # density None (recorded so) is the shipped one; a file given is recorded by name
+            path = bayes.get("density") or shipped
+            if bayes.get("density") is None and not shipped.exists():
+                raise ValueError(
+                    f"no shipped push density for setting {setting.name!r}: train one "
+                    "(`masspush train-density`) and pass --bayes density=FILE"
+                )
+            env = EnvConfig(physics=setting.physics(), pusher=pusher or setting.pusher)
+            density = density_for(path, env)  # a bad file is refused before any episode
+        return BayesEstimator(
+            setting, str(model), pusher, overrides=bayes or None, progress=progress,
+            density=density,
+        )  # fmt: skip
     if bayes:
         raise ValueError(f"bayes options apply to the particle filter, not to {model!r}")
     path = resolve_model(model, setting.name)

@@ -12,6 +12,8 @@ from masspush.bayes.filter import (
     ARM_PARTICLES,
     ARM_SURROGATE,
     FILTER_REVISION,
+    LEARNED_CONFIG,
+    LEARNED_LIKELIHOOD_POWER,
     SURROGATE_CONFIG,
     SURROGATE_LIKELIHOOD_POWER,
     BayesConfig,
@@ -22,11 +24,13 @@ from masspush.bayes.filter import (
     bayes_overrides,
     chi2_quantile,
     config_difference,
+    default_config,
     filter_for,
     simplex_median,
 )
 from masspush.config import EnvConfig
 from masspush.env import ChainEnv
+from masspush.learn.push_density import rest_poses
 from masspush.settings import get_setting
 
 SETTING = get_setting("2link-1-10")  # stiff pusher: the filter's own
@@ -391,3 +395,60 @@ def test_replaying_a_recorded_episode_is_its_updates_in_turn():
     np.testing.assert_array_equal(filters[1].log_w, filters[0].log_w)
     assert filters[1].warnings == filters[0].warnings >= 1
     assert filters[1].replay(observations[:1], actions) is None
+
+
+class ShareDensity:
+    """A known likelihood in the density's place: a push moves the chain along its first
+    link by the first link's share of the mass, seen with noise 0.01."""
+
+    def digest(self):
+        return "share"
+
+    def _mean(self, start, masses):
+        out = np.zeros((len(masses), 4))
+        out[:, 0] = masses[:, 0] / masses.sum(axis=1)
+        return rest_poses(start, out)
+
+    def log_prob(self, start, action, observed, masses, friction, lengths):
+        return -0.5 * np.sum(((observed - self._mean(start, masses)) / 0.01) ** 2, axis=1)
+
+    def cross_log_prob(self, start, action, observed, masses, friction, lengths):
+        mean = self._mean(start, masses)
+        return -0.5 * np.sum(((observed[:, None] - mean[None]) / 0.01) ** 2, axis=2)
+
+    def sample(self, start, action, masses, friction, lengths, rng):
+        return self._mean(start, masses) + rng.normal(0, 0.01, (len(masses), 4))
+
+
+def test_the_learned_likelihood_concentrates_the_filter_on_the_truth():
+    env = EnvConfig(physics=SETTING.physics(), pusher="stiff")
+    config = BayesConfig(likelihood="learned", density="any", particles=2000, move_sweeps=2,
+                         lookahead_particles=16, candidates=2)  # fmt: skip
+    filt = ParticleFilter(env, config, seed=0, density=ShareDensity())
+    assert filt.arm is None and "density_digest" in filt.settings()
+    filt.reset(np.array([0.12, 0.12]), episode=3)
+    truth = np.array([0.3, 0.7])
+    start = np.array([0.0, 0.0, 0.4, 0.1])
+    observed = ShareDensity()._mean(start, truth[None])[0]
+    for _ in range(3):
+        posterior = filt.update(start, np.array([0.5, 0.5]), observed)
+    assert np.abs(posterior.estimate - truth).max() < 0.02, posterior.estimate
+    assert np.all(posterior.low <= truth + 0.01) and np.all(truth - 0.01 <= posterior.high)
+    assert filt.accepted and max(filt.accepted) > 0  # resample-move ran, with the density
+    scores = filt.expected_variance(start, np.array([[0.5, 0.5], [-0.5, 0.5]]))
+    assert scores.shape == (2,) and np.all(scores >= 0)
+
+
+def test_the_learned_likelihood_is_chosen_by_name():
+    two, three = (default_config(get_setting(name), likelihood="learned")
+                  for name in ("2link-0.1-1", "3link-0.1-1"))  # fmt: skip
+    assert replace(two, likelihood_power=None) == LEARNED_CONFIG
+    assert (two.likelihood_power, three.likelihood_power) == LEARNED_LIKELIHOOD_POWER
+    got = bayes_overrides(["likelihood=learned", "density=m.pt"])
+    assert got == {"likelihood": "learned", "density": "m.pt"}
+    assert bayes_overrides(["density=none"]) == {"density": None}
+    with pytest.raises(ValueError, match="likelihood"):
+        BayesConfig(likelihood="guess")
+    with pytest.raises(ValueError, match="needs a push density"):
+        ParticleFilter(EnvConfig(physics=SETTING.physics(), pusher="stiff"),
+                       BayesConfig(likelihood="learned"))  # fmt: skip

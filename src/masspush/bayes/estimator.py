@@ -15,6 +15,7 @@ from masspush.bayes.filter import (
     BayesConfig,
     InfoSeekingPolicy,
     ParticleFilter,
+    PushLikelihood,
     UnexplainedObservationWarning,
     default_config,
     filter_for,
@@ -82,12 +83,19 @@ class BayesEstimator:
     def __init__(
         self, setting: Setting, model: str = "bayes", pusher: str | None = None,
         config: BayesConfig | None = None, overrides: dict | None = None, progress: bool = True,
+        density: PushLikelihood | None = None,
     ):  # fmt: skip
         if model not in BAYES_MODELS:
             raise ValueError(f"unknown Bayesian model {model!r}; known: {list(BAYES_MODELS)}")
         self.setting, self.name, self.progress = setting, model, progress
         self.pusher = pusher or setting.pusher
-        self.config = replace(config or default_config(setting, self.pusher), **(overrides or {}))
+        overrides = overrides or {}
+        likelihood = overrides.get("likelihood", "simulator")
+        base = config or default_config(setting, self.pusher, likelihood)
+        self.config = replace(base, **overrides)
+        self.density = density
+        if self.config.likelihood == "learned" and density is None:
+            raise ValueError("likelihood=learned needs the push density (`density`)")
         self.seeking = BAYES_MODELS[model]
         self.policy = "information-seeking" if self.seeking else "random"
         self.model_file = None
@@ -119,7 +127,7 @@ class BayesEstimator:
     ) -> dict:
         """The raw results of episodes `indices` (what `_finish` turns into a run)."""
         env = ChainEnv.from_config(env_config)
-        filt = filter_for(self.setting, self.pusher, self.config, seed)
+        filt = filter_for(self.setting, self.pusher, self.config, seed, self.density)
         policy = InfoSeekingPolicy(filt, seed) if self.seeking else None
         k = env_config.pushes
         out: dict = {"index": [], "estimates": [], "means": [], "truths": [], "inside": [],

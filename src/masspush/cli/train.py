@@ -1,4 +1,5 @@
-"""Commands that train: the predictor, the baselines, the recipe, Table 1, uncertainty."""
+"""Commands that train: the predictor, the baselines, the recipe, Table 1, uncertainty, the
+filter's learned likelihood."""
 
 from __future__ import annotations
 
@@ -154,6 +155,26 @@ def _calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _density_options(p: argparse.ArgumentParser) -> None:
+    from masspush.learn.push_density import DensityConfig
+
+    add_fields(p, DensityConfig)
+
+
+def _density(args: argparse.Namespace) -> int:
+    from masspush.learn.push_density import DensityConfig, train_push_density
+
+    config = build(DensityConfig, args)
+    summary = train_push_density(config)
+    print(
+        f"wrote {config.out}: trained on {summary['pushes']:,} pushes; on "
+        f"{summary['held_out_pushes']:,} held out, log-likelihood "
+        f"{summary['held_out_log_likelihood']:.3f} per push (standardised; higher is better); "
+        f"{summary['seconds'] / 60:.1f} min"
+    )
+    return 0
+
+
 COMMANDS = [
     Command("train-predictor", GROUP, "the LSTM predictor on a dataset (resumable)",
             _predictor_options, _predictor),
@@ -163,6 +184,9 @@ COMMANDS = [
             _train_options, _train),
     Command("reproduce", GROUP, "the paper's Table 1 and figures (resumable)",
             _reproduce_options, _reproduce),
+    Command("train-density", GROUP,
+            "the particle filter's learned likelihood of a push on datasets (resumable)",
+            _density_options, _density),
     Command("calibrate", GROUP, "fit a model's learned uncertainty (a Dirichlet head)",
             _calibrate_options, _calibrate),
 ]  # fmt: skip

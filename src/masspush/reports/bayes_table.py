@@ -104,7 +104,13 @@ def model_files_digest(setting: str, model: str) -> str:
 def filter_settings(setting: str) -> dict[str, Any]:
     """The particle filter's configuration for `setting` as `evaluate` would run it, as it
     reads back from JSON: a cached measurement with another one is measured again."""
-    return json.loads(json.dumps(filter_for(get_setting(setting)).settings()))
+    spec = get_setting(setting)
+    estimator = load_estimator("bayes", spec, progress=False)  # the shipped density, if any
+    filt = filter_for(spec, estimator.pusher, estimator.config, density=estimator.density)
+    try:
+        return json.loads(json.dumps(filt.settings()))
+    finally:
+        filt.close()
 
 
 def table_markdown(rows: list[dict[str, Any]]) -> str:
