@@ -722,12 +722,15 @@ contact). Fitted by `experiments/bayes/fit_arm_surrogate.py` over speed scale, h
 
 
 LEARNED_CONFIG = BayesConfig(
-    likelihood="learned", particles=4096, candidates=16, lookahead_particles=64, move_sweeps=2
+    likelihood="learned", particles=4096, candidates=48, lookahead_particles=128, move_sweeps=2
 )
 """With the learned likelihood a particle costs a network evaluation (~4 us), so thousands
 fit where the arm's simulation allowed 128-256, and resample-move (exact, each move weighed
-against every push so far) replaces the Liu-West jitter, since re-weighing is cheap
-(docs/notebook/2026-12-04-learned-likelihood.md) [ours]."""
+against every push so far) replaces the Liu-West jitter, since re-weighing is cheap. The
+pushes gain most from the spare time: on the tuning episodes (seed 1) 48 candidates on 128
+lookahead particles erred 5.05 (2 links, 300 episodes) and 10.70 (3 links, 100) against
+6.05 and 13.09 with 16 on 64, at 0.5-0.8 s an episode; 96 candidates 5.00, 16384
+particles 5.80 (docs/notebook/2026-12-04-learned-likelihood.md) [ours]."""
 
 LEARNED_LIKELIHOOD_POWER = (0.7, 0.7)
 """The learned likelihood's power: two links, three or more. At power 1 the densities are
