@@ -336,14 +336,9 @@ def train_push_density(config: DensityConfig, progress: bool = True) -> dict:
     torch.manual_seed(config.seed)
     net = PushDensity(x_fit.shape[1], y_fit.shape[1], config.components, config.width,
                       config.depth, meta=meta)  # fmt: skip
-    (
-        net.x_mean.copy_(torch.as_tensor(x_fit.mean(0))),
-        net.x_std.copy_(torch.as_tensor(x_fit.std(0) + 1e-6)),
-    )
-    (
-        net.y_mean.copy_(torch.as_tensor(y_fit.mean(0))),
-        net.y_std.copy_(torch.as_tensor(y_fit.std(0) + 1e-6)),
-    )
+    for name, values in (("x", x_fit), ("y", y_fit)):
+        getattr(net, f"{name}_mean").copy_(torch.as_tensor(values.mean(0)))
+        getattr(net, f"{name}_std").copy_(torch.as_tensor(values.std(0) + 1e-6))
     opt = torch.optim.Adam(net.parameters(), lr=config.lr)
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, config.lr, total_steps=config.steps)
     gen = torch.Generator().manual_seed(config.seed)
@@ -355,8 +350,9 @@ def train_push_density(config: DensityConfig, progress: bool = True) -> dict:
             raise ValueError(
                 f"out: {ckpt} is a checkpoint of another training run; delete it to start over"
             )
-        net.load_state_dict(state["net"]), opt.load_state_dict(state["opt"])
-        sched.load_state_dict(state["sched"]), gen.set_state(state["gen"])
+        for part, key in ((net, "net"), (opt, "opt"), (sched, "sched")):
+            part.load_state_dict(state[key])
+        gen.set_state(state["gen"])
         step, seconds = state["step"], state["seconds"]
     xt = net._x(x_fit).detach()
     yt = net._y(y_fit).detach()
