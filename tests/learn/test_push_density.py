@@ -144,6 +144,8 @@ def test_bad_configs_and_files_are_one_line_errors(tmp_path):
         DensityConfig(data=("d",), out="x.pt", held_out=0.7)
     with pytest.raises(ValueError, match="directory"):
         DensityConfig(data=("d",), out=str(tmp_path))
+    with pytest.raises(ValueError, match=r"batch_size 1,000,000,000,000: a step on pushes"):
+        DensityConfig(data=("d",), out="x.pt", batch_size=10**12)
     with pytest.raises(ValueError, match="no such file"):
         load_push_density(tmp_path / "none.pt")
     garbage = tmp_path / "g.pt"

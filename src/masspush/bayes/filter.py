@@ -559,10 +559,7 @@ class ParticleFilter:
             log_w = self._log_lik(d)
             log_w[:, failed[part]] = -np.inf
             log_w[bad] = 0.0  # a failed push leaves the weights as they were
-            w = np.exp(log_w - log_w.max(axis=1, keepdims=True))
-            w /= w.sum(axis=1, keepdims=True)
-            mean = w @ shares
-            out[j] = float(np.mean(np.sum(w @ (shares**2) - mean**2, axis=1)))
+            out[j] = _expected_posterior_variance(log_w, shares)
         return out
 
     def _learned_expected_variance(
@@ -578,10 +575,7 @@ class ParticleFilter:
             log_w = self.likelihood_power * self.density.cross_log_prob(
                 start, action, seen, masses, friction, self.lengths
             )
-            w = np.exp(log_w - log_w.max(axis=1, keepdims=True))
-            w /= w.sum(axis=1, keepdims=True)
-            mean = w @ shares
-            out[j] = float(np.mean(np.sum(w @ (shares**2) - mean**2, axis=1)))
+            out[j] = _expected_posterior_variance(log_w, shares)
         return out
 
 
@@ -654,6 +648,15 @@ def failure_floor(log_lik: np.ndarray, failed: np.ndarray) -> np.ndarray:
     finite penalty keeps the weights defined when every particle failed."""
     ok = ~failed
     return np.where(ok, log_lik, (log_lik[ok].min() if ok.any() else 0) - 25)
+
+
+def _expected_posterior_variance(log_w: np.ndarray, values: np.ndarray) -> float:
+    """The mean over imagined outcomes (rows of `log_w`, (outcomes, particles)) of the
+    posterior variance of `values` (particles, q), summed over q."""
+    w = np.exp(log_w - log_w.max(axis=1, keepdims=True))
+    w /= w.sum(axis=1, keepdims=True)
+    mean = w @ values
+    return float(np.mean(np.sum(w @ (values**2) - mean**2, axis=1)))
 
 
 def _ess(w: np.ndarray) -> float:

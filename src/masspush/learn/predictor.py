@@ -310,14 +310,20 @@ episodes took 400 MB above the model's, one of 100,000 took 1.6 GB (forward, bac
 optimiser step on this machine's CPU build) [ours, measured]."""
 
 
-def check_batch_memory(batch_size: int, pushes: int) -> None:
-    """Refuse, before any work, a batch whose training step would not fit in memory."""
-    need = batch_size * pushes * BATCH_BYTES_PER_PUSH
+def check_batch_memory(
+    batch_size: int, pushes: int, bytes_per_push: float = BATCH_BYTES_PER_PUSH,
+    what: str | None = None,
+) -> None:  # fmt: skip
+    """Refuse, before any work, a batch whose training step would not fit in memory: a
+    batch of `batch_size` items of `pushes` pushes each, `what` they are (default:
+    "{pushes}-push episodes")."""
+    need = batch_size * pushes * bytes_per_push
     have = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     if need > have // 2:
         raise ValueError(
-            f"batch_size {batch_size:,}: a step on {pushes}-push episodes needs about "
-            f"{need / 2**30:.1f} GiB, more than half of this machine's {have / 2**30:.0f} GiB"
+            f"batch_size {batch_size:,}: a step on {what or f'{pushes}-push episodes'} needs "
+            f"about {need / 2**30:.1f} GiB, more than half of this machine's "
+            f"{have / 2**30:.0f} GiB"
         )
 
 

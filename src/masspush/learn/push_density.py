@@ -35,7 +35,8 @@ import torch
 from torch import nn
 from torch.distributions import Categorical, MixtureSameFamily, MultivariateNormal
 
-from masspush.config import check_int
+from masspush.config import check_int, check_output
+from masspush.learn.predictor import check_batch_memory
 from masspush.sim.chain import wrap_angle
 
 PUSH_DENSITY_FILE = "push-density.pt"
@@ -43,6 +44,12 @@ PUSH_DENSITY_FILE = "push-density.pt"
 
 FORMAT = 1
 """The model file's format version."""
+
+
+DENSITY_BYTES_PER_PUSH = 12_000
+"""Training memory per push of a batch at the default network (3 x 256, 8 components) with
+three links' 5 outputs: a step on 20,000 pushes took 231 MB, on 100,000 1.08 GB (forward and
+backward on this machine's CPU build) [ours, measured]."""
 
 
 @dataclass(frozen=True)
@@ -86,8 +93,10 @@ class DensityConfig:
             raise ValueError(f"lr must be a positive number, got {self.lr!r}")
         if not 0 < self.held_out < 0.5:
             raise ValueError(f"held_out must be in (0, 0.5), got {self.held_out!r}")
-        if Path(self.out).is_dir():
-            raise ValueError(f"out: {self.out} is a directory; name the model file to write")
+        check_output(self.out, "out")
+        # Memory grows with the network and its mixture; scaled from the measured default.
+        size = max(1.0, self.width * self.depth / 768, self.components / 8)
+        check_batch_memory(self.batch_size, 1, DENSITY_BYTES_PER_PUSH * size, "pushes")
 
 
 def push_inputs(
@@ -126,14 +135,16 @@ def rest_poses(start: np.ndarray, outputs: np.ndarray) -> np.ndarray:
     return np.column_stack([x, y, yaw, outputs[:, 3:]])
 
 
-def episode_pushes(episodes: Any) -> tuple[np.ndarray, np.ndarray]:
-    """Every push of a dataset's episodes that did not fail, and none after a failure:
-    inputs and outputs (`push_inputs`, `push_outputs`), each from the observed (noisy)
-    rest pose before it to the observed one after, as the filter sees them."""
-    obs, actions = np.asarray(episodes.observations, float), np.asarray(episodes.actions, float)
-    masses, friction = np.asarray(episodes.masses, float), np.asarray(episodes.friction, float)
-    lengths = np.asarray(episodes.lengths, float)
-    intact = np.cumsum(np.asarray(episodes.failure) != 0, axis=1) == 0
+def episode_pushes(episodes: Any, rows: slice = slice(None)) -> tuple[np.ndarray, np.ndarray]:
+    """Every push of a dataset's episodes (`rows` of them) that did not fail, and none after
+    a failure: inputs and outputs (`push_inputs`, `push_outputs`), each from the observed
+    (noisy) rest pose before it to the observed one after, as the filter sees them."""
+    obs = np.asarray(episodes.observations[rows], float)
+    actions = np.asarray(episodes.actions[rows], float)
+    masses = np.asarray(episodes.masses[rows], float)
+    friction = np.asarray(episodes.friction[rows], float)
+    lengths = np.asarray(episodes.lengths[rows], float)
+    intact = np.cumsum(np.asarray(episodes.failure[rows]) != 0, axis=1) == 0
     inputs, outputs = [], []
     for k in range(actions.shape[1]):
         ok = intact[:, k]
@@ -169,8 +180,9 @@ class PushDensity(nn.Module):
                      "width": width, "depth": depth}  # fmt: skip
         self.meta = dict(meta or {})
 
-    def dist(self, x: torch.Tensor) -> MixtureSameFamily:
-        """The mixture over standardised outputs for standardised inputs (b, inputs)."""
+    def mixture(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """For standardised inputs (b, inputs): the components' logits (b, k), means
+        (b, k, d) and lower-triangular scales (b, k, d, d) over standardised outputs."""
         h = self.body(x)
         b, k, d = len(x), self.k, self.d
         scale = torch.zeros(b, k, d, d, dtype=x.dtype)
@@ -178,8 +190,13 @@ class PushDensity(nn.Module):
         # The floor keeps a component from collapsing onto a training point.
         scale[:, :, diag, diag] = nn.functional.softplus(self.diag(h).view(b, k, d)) + 1e-3
         scale[:, :, self.below[0], self.below[1]] = self.off(h).view(b, k, -1)
-        parts = MultivariateNormal(self.mean(h).view(b, k, d), scale_tril=scale)
-        return MixtureSameFamily(Categorical(logits=self.logits(h)), parts)
+        return self.logits(h), self.mean(h).view(b, k, d), scale
+
+    def dist(self, x: torch.Tensor) -> MixtureSameFamily:
+        """The mixture over standardised outputs for standardised inputs (b, inputs)."""
+        logits, mean, scale = self.mixture(x)
+        parts = MultivariateNormal(mean, scale_tril=scale)
+        return MixtureSameFamily(Categorical(logits=logits), parts)
 
     def _x(self, inputs: np.ndarray) -> torch.Tensor:
         return (torch.as_tensor(inputs, dtype=torch.float32) - self.x_mean) / self.x_std
@@ -214,17 +231,14 @@ class PushDensity(nn.Module):
     ) -> np.ndarray:  # fmt: skip
         """One observed rest pose (m, d) per particle, drawn with `rng` (so a seeded filter
         stays deterministic)."""
-        x = self._x(push_inputs(start, action, masses, friction, lengths))
-        h = self.body(x)
-        m, k, d = len(x), self.k, self.d
-        p = torch.softmax(self.logits(h), dim=-1).double().numpy()
+        logits, means, scales = self.mixture(
+            self._x(push_inputs(start, action, masses, friction, lengths))
+        )
+        m, k, d = means.shape
+        p = torch.softmax(logits, dim=-1).double().numpy()
         pick = (rng.uniform(size=(m, 1)) > np.cumsum(p, axis=1)).sum(axis=1).clip(0, k - 1)
-        mean = self.mean(h).view(m, k, d).numpy()[np.arange(m), pick]
-        scale = np.zeros((m, d, d))
-        diag = nn.functional.softplus(self.diag(h).view(m, k, d)).numpy() + 1e-3
-        scale[:, np.arange(d), np.arange(d)] = diag[np.arange(m), pick]
-        below = self.below.numpy()
-        scale[:, below[0], below[1]] = self.off(h).view(m, k, -1).numpy()[np.arange(m), pick]
+        rows = np.arange(m)
+        mean, scale = means.double().numpy()[rows, pick], scales.double().numpy()[rows, pick]
         y = mean + np.einsum("mij,mj->mi", scale, rng.normal(size=(m, d)))
         y = y * self.y_std.numpy() + self.y_mean.numpy()
         return rest_poses(start, y)
@@ -328,7 +342,7 @@ def train_push_density(config: DensityConfig, progress: bool = True) -> dict:
         _, episodes = load_dataset(d)
         cut = len(episodes.masses) - max(1, round(config.held_out * len(episodes.masses)))
         for part, rows in ((fit, slice(0, cut)), (held, slice(cut, None))):
-            x, y = episode_pushes(_rows(episodes, rows))
+            x, y = episode_pushes(episodes, rows)
             part[0].append(x)
             part[1].append(y)
     x_fit, y_fit = np.concatenate(fit[0]), np.concatenate(fit[1])
@@ -391,13 +405,3 @@ def train_push_density(config: DensityConfig, progress: bool = True) -> dict:
     net.save(out)
     ckpt.unlink(missing_ok=True)
     return summary
-
-
-def _rows(episodes: Any, rows: slice) -> Any:
-    """The episodes `rows` of a dataset's `Episodes`."""
-    from types import SimpleNamespace
-
-    return SimpleNamespace(**{
-        name: np.asarray(getattr(episodes, name))[rows]
-        for name in ("observations", "actions", "masses", "friction", "lengths", "failure")
-    })  # fmt: skip
