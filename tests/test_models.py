@@ -95,6 +95,9 @@ def test_a_shipped_push_density_is_the_filter_s_default_likelihood():
     # trained for the setting's pusher only: another pusher gets the simulator
     other = load_estimator("bayes-random", kuka, pusher="stiff", progress=False)
     assert other.config.likelihood == "simulator"
+    real = load_estimator("bayes", get_setting("real-ur10"), progress=False)
+    assert real.config.likelihood == "learned"
+    assert real.density.placed  # a stationary robot's push depends on where the chain lies
     stiff = load_estimator("bayes", get_setting("2link-1-10"), progress=False)  # ships none
     assert stiff.config.likelihood == "simulator"
     with pytest.raises(ValueError, match="no shipped push density"):

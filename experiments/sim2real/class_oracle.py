@@ -30,7 +30,9 @@ import numpy as np
 from tqdm import tqdm
 
 import masspush.bayes as bayes
+from masspush.config import EnvConfig
 from masspush.data import read_recording
+from masspush.learn import density_for
 from masspush.real import labelled
 from masspush.settings import get_setting
 
@@ -38,20 +40,25 @@ CACHE_VERSION = 2
 """Version 2: each episode's filter seeded by its place in the recording."""
 
 
-def read_cache(cache: Path) -> dict[str, list[float]]:
-    """The cached log posteriors by episode id; none from a cache of another version."""
+def read_cache(cache: Path, density: str | None = None) -> dict[str, list[float]]:
+    """The cached log posteriors by episode id; none from a cache of another version or
+    made with another likelihood (`density`: the learned one's digest, None the
+    simulator's)."""
     stored = json.loads(cache.read_text()) if cache.exists() else {}
-    return stored.get("episodes", {}) if stored.get("version") == CACHE_VERSION else {}
+    same = stored.get("version") == CACHE_VERSION and stored.get("density") == density
+    return stored.get("episodes", {}) if same else {}
 
 
 def class_log_posteriors(
     recording, setting, pusher: str | None, classes: list[np.ndarray], frictions: np.ndarray,
-    cache: Path, places: dict[str, int],
+    cache: Path, places: dict[str, int], density=None,
 ) -> dict[str, list[float]]:  # fmt: skip
     """Episode id -> log posterior of each class after the episode's pushes; `places`:
-    each episode's place in the recording, its filter's seed."""
-    done = read_cache(cache)
-    hypotheses = bayes.hypothesis_filter(setting, classes, frictions, pusher)
+    each episode's place in the recording, its filter's seed; `density`: a learned push
+    density to weigh the pushes with instead of simulating the robot."""
+    digest = None if density is None else density.digest()
+    done = read_cache(cache, digest)
+    hypotheses = bayes.hypothesis_filter(setting, classes, frictions, pusher, density=density)
     try:
         for episode in tqdm(recording.episodes, desc="class oracle"):
             if episode["id"] in done:
@@ -60,7 +67,9 @@ def class_log_posteriors(
             hypotheses.filter.replay(episode["observations"], episode["actions"])
             w = hypotheses.weights()
             done[episode["id"]] = np.log(np.maximum(w, 1e-300)).tolist()
-            cache.write_text(json.dumps({"version": CACHE_VERSION, "episodes": done}))
+            cache.write_text(
+                json.dumps({"version": CACHE_VERSION, "density": digest, "episodes": done})
+            )
     finally:
         hypotheses.close()
     return done
@@ -71,7 +80,14 @@ def main() -> None:
     parser.add_argument("recording", help="a sim2real arm's recording (learned.jsonl, ...)")
     parser.add_argument("--episodes", type=int, default=15, help="per class, the first ones")
     parser.add_argument("--frictions", type=int, default=6, help="friction grid per class")
-    parser.add_argument("--cache", help="default: the recording's name with .oracle.json")
+    parser.add_argument(
+        "--cache", help="default: the recording's name with .oracle.json (.oracle-learned.json "
+        "with --density)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--density", help="weigh pushes with this learned push density (`masspush "
+        "train-density`) instead of simulating the robot for each hypothesis",
+    )  # fmt: skip
     parser.add_argument(
         "--pusher",
         help="the robot the recording was made with, where not the setting's (e.g. ur10 for "
@@ -101,7 +117,15 @@ def main() -> None:
     by_label = {e["label"]: e["masses"] for e in kept}
     classes = [np.array(by_label[name], float) for name in names]
     frictions = bayes.friction_grid(setting, args.frictions)
-    cache = Path(args.cache) if args.cache else path.with_suffix(".oracle.json")
+    density = None
+    if args.density is not None:
+        env = EnvConfig(physics=setting.physics(), pusher=args.pusher or setting.pusher)
+        try:
+            density = density_for(args.density, env)
+        except ValueError as err:
+            parser.error(f"--density: {err}")
+    suffix = ".oracle.json" if density is None else ".oracle-learned.json"
+    cache = Path(args.cache) if args.cache else path.with_suffix(suffix)
     try:  # before any episode is weighed: a cache that cannot be written loses them all
         if not cache.exists():
             cache.write_text(json.dumps({"version": CACHE_VERSION, "episodes": {}}))
@@ -109,7 +133,9 @@ def main() -> None:
             pass
     except OSError as err:
         parser.error(f"cache: cannot write {cache} ({err.strerror})")
-    posts = class_log_posteriors(recording, setting, args.pusher, classes, frictions, cache, places)
+    posts = class_log_posteriors(
+        recording, setting, args.pusher, classes, frictions, cache, places, density
+    )
 
     guess = np.array([int(np.argmax(posts[e["id"]])) for e in kept])
     print(f"{path}: {len(kept)} episodes, {len(names)} classes x {args.frictions} frictions")

@@ -30,39 +30,49 @@ import numpy as np
 from tqdm import tqdm
 
 import masspush.bayes as bayes
-from masspush.real import PAPER_CLASSES, SimRobot
+from masspush.config import EnvConfig
+from masspush.learn import density_for
+from masspush.real import (
+    PAPER_CLASSES,
+    ClassifierConfig,
+    TargetWorld,
+    class_robot,
+    cross_validate,
+)
 from masspush.settings import get_setting
 from masspush.sim import reach_governor
 
 
-def class_filter(setting, frictions: int, lookahead: int) -> bayes.HypothesisFilter:
-    """The filter whose particles are the five classes x `frictions` table frictions."""
+def class_filter(setting, frictions: int, lookahead: int, density=None) -> bayes.HypothesisFilter:
+    """The filter whose particles are the five classes x `frictions` table frictions,
+    weighing pushes by simulating the robot, or with a learned push `density`."""
     classes = list(PAPER_CLASSES.values())
     grid = bayes.friction_grid(setting, frictions)
-    return bayes.hypothesis_filter(setting, classes, grid, lookahead=lookahead)
+    return bayes.hypothesis_filter(setting, classes, grid, lookahead=lookahead, density=density)
 
 
 def run_config(args) -> dict:
     """What the episodes kept in --out depend on: a rerun resumes only with the same."""
-    keys = ("policy", "candidates", "lookahead", "frictions", "pushes", "seed")
+    keys = ("policy", "candidates", "lookahead", "frictions", "pushes", "seed", "density", "lab",
+            "chains")  # fmt: skip
     return {k: getattr(args, k) for k in keys}
 
 
-def run(args) -> dict:
+def run(args, density=None) -> dict:
     """The episodes asked for (`--episodes` per class) by id, measured or kept in --out."""
     setting = get_setting("real-ur10")
     governor = reach_governor(setting.pusher, setting.physics())
-    classes = class_filter(setting, args.frictions, args.lookahead)
+    classes = class_filter(setting, args.frictions, args.lookahead, density)
     filt, onehot = classes.filter, classes.onehot
     n = len(PAPER_CLASSES)
     out, config = Path(args.out), run_config(args)
     done = json.loads(out.read_text())["episodes"] if out.exists() else {}
     bar, asked = tqdm(total=n * args.episodes, desc=args.policy), []
     try:
-        for c, (label, pair) in enumerate(PAPER_CLASSES.items()):
-            # The seeds of `masspush sim2real --world training` (seed 0): the same chains.
-            robot = SimRobot(setting, seed=100_000 * c, masses=pair,
-                             pushes=args.pushes, allow_out_of_range=True)  # fmt: skip
+        for c, label in enumerate(PAPER_CLASSES):
+            # The chains of `masspush sim2real --world training --seed CHAINS` (or --lab L)
+            world = None if args.lab is None else TargetWorld()
+            robot = class_robot(setting, c, args.chains, world, args.lab, args.pushes)
             for i in range(args.episodes):
                 pose = robot.start()
                 key = f"{label}-{i + 1:03d}"
@@ -74,6 +84,7 @@ def run(args) -> dict:
                 classes.reset(pose.lengths, episode=c * 1000 + i)
                 rng = np.random.default_rng([args.seed, c, i])
                 start, actions, lost = np.asarray(pose.config, float), [], None
+                poses = [start.tolist()]
                 for _ in range(args.pushes):
                     cand = rng.uniform(-1, 1, (args.candidates, 2))
                     cand = np.array([governor(a, start, pose.lengths) for a in cand], float)
@@ -91,9 +102,11 @@ def run(args) -> dict:
                         warnings.simplefilter("ignore", bayes.UnexplainedObservationWarning)
                         filt.update(start, action, observed)
                     actions.append(action.tolist())
+                    poses.append(observed.tolist())
                     start = observed
                 done[key] = {
                     "label": c, "posterior": classes.weights().tolist(), "actions": actions,
+                    "poses": poses, "lengths": np.asarray(pose.lengths, float).tolist(),
                     "failure": lost, "seconds": time.perf_counter() - t0,
                 }  # fmt: skip
                 out.write_text(json.dumps({"config": config, "episodes": done}))
@@ -116,16 +129,40 @@ def main() -> None:
     parser.add_argument("--lookahead", type=int, default=20, help="lookahead particles")
     parser.add_argument("--frictions", type=int, default=8, help="friction grid per class")
     parser.add_argument("--pushes", type=int, default=2)
+    parser.add_argument(
+        "--lab", type=int, help="push in this lab of the target world (`masspush sim2real "
+        "--lab`) instead of the training world",
+    )  # fmt: skip
     parser.add_argument("--seed", type=int, default=0, help="the candidates' randomness")
+    parser.add_argument(
+        "--chains", type=int, default=0, help="the chains' seed (`masspush sim2real --seed`)"
+    )
     parser.add_argument("--out", default="results/class-seeking.json")
+    parser.add_argument(
+        "--density", help="weigh pushes with this learned push density (`masspush "
+        "train-density`) instead of simulating the robot for each hypothesis",
+    )  # fmt: skip
     args = parser.parse_args()
     for name in ("episodes", "candidates", "lookahead", "frictions", "pushes"):
         if getattr(args, name) < 1:
             parser.error(f"--{name} must be at least 1")
+    density, setting = None, get_setting("real-ur10")
+    if args.density is not None:
+        try:
+            density = density_for(
+                args.density, EnvConfig(physics=setting.physics(), pusher=setting.pusher)
+            )
+        except ValueError as err:
+            parser.error(f"--density: {err}")
     out = Path(args.out)
     try:  # before any episode: a file that cannot be read or written loses them all
         if out.exists():
-            kept = json.loads(out.read_text())["config"]
+            kept = {
+                "density": None,
+                "lab": None,
+                "chains": 0,
+                **json.loads(out.read_text())["config"],
+            }
             if kept != run_config(args):
                 parser.error(f"--out: {out} holds episodes made with {kept}; use another file")
         else:
@@ -134,7 +171,7 @@ def main() -> None:
             pass
     except (OSError, ValueError, KeyError, TypeError) as err:
         parser.error(f"--out: cannot use {out} ({getattr(err, 'strerror', None) or err})")
-    done = run(args)
+    done = run(args, density)
     labels = np.array([e["label"] for e in done.values()])
     guess = np.array([int(np.argmax(e["posterior"])) for e in done.values()])
     lost = sum(e["failure"] is not None for e in done.values())
@@ -149,6 +186,12 @@ def main() -> None:
     accuracy = 100 * np.mean(guess == labels)
     print(f"{args.policy} pushes, class oracle: {accuracy:.1f} % of {len(labels)} episodes, "
           f"{lost} lost, {seconds:.1f} s an episode")  # fmt: skip
+    # The protocol's classifier (5-fold cross-validated) on the filter's class log-posteriors:
+    # where the oracle's likelihood is off (another world), the labels re-map it.
+    logs = np.log(np.maximum([e["posterior"] for e in done.values()], 1e-300))
+    if min(np.bincount(labels, minlength=len(names))) >= ClassifierConfig().folds:
+        scored = cross_validate(logs, labels, len(names), ClassifierConfig())
+        print(f"classifier on the class log-posteriors: {100 * scored['accuracy']:.1f} %")
 
 
 if __name__ == "__main__":

@@ -202,6 +202,36 @@ def test_random_pushes_keep_to_the_filter_s_push_range():
     assert np.abs(actions[:, 1]).max() > 0.1  # the contact point still spans the links
 
 
+class SlowGovernor:
+    """A stationary robot's governor in miniature: every push slowed to at most 0.05."""
+
+    def __init__(self):
+        self.calls = []
+
+    def __call__(self, action, config, lengths):
+        self.calls.append((np.array(action), np.array(config), np.array(lengths)))
+        return np.array([np.clip(action[0], -0.05, 0.05), action[1]])
+
+
+def test_a_stationary_robot_s_pushes_go_through_its_governor():
+    env = ChainEnv.from_config(env_config())
+    governor = SlowGovernor()
+    cfg = BayesConfig(particles=16, lookahead_particles=4, candidates=3)
+    result = run_bayes_episode(env, ParticleFilter(env_config(), cfg), None, seed=3, pushes=2,
+                               governor=governor)  # fmt: skip
+    actions = np.array(result["actions"])
+    assert len(governor.calls) == 2 and np.all(np.abs(actions[:, 0]) <= 0.05)
+    # The governor sees the pose the push starts from and the chain's observed lengths.
+    assert governor.calls[0][1].shape == (SETTING.physics().obs_dim,)
+    assert governor.calls[0][2].shape == (2,)
+
+    filt = ParticleFilter(env_config(), cfg, seed=0)
+    filt.reset(np.array([0.12, 0.12]), episode=0)
+    governor = SlowGovernor()
+    action = InfoSeekingPolicy(filt, 0, governor).act(np.zeros(SETTING.physics().obs_dim))
+    assert len(governor.calls) == 3 and abs(action[0]) <= 0.05  # every candidate governed
+
+
 def test_a_chain_still_creeping_at_the_settle_cap_is_taken_where_it_is():
     short = ParticleFilter(env_config(), BayesConfig(particles=8, settle_cap=0.02), seed=0)
     full = ParticleFilter(env_config(), BayesConfig(particles=8, settle_cap=10.0), seed=0)

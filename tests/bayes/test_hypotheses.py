@@ -57,3 +57,36 @@ def test_hypotheses_of_another_chain_are_refused():
         hypothesis_filter(SETTING, HYPOTHESES, np.array([]))
     with pytest.raises(ValueError, match="lookahead_particles >= 4"):  # 0 is not the default
         hypothesis_filter(SETTING, HYPOTHESES, friction_grid(SETTING, 3), lookahead=0)
+
+
+class ShareLikelihood:
+    """A known push density: the chain moves along its first link by the first link's share
+    of the mass, seen with noise 0.01, whatever the friction."""
+
+    def digest(self):
+        return "share"
+
+    def _mean(self, start, masses):
+        out = np.array(np.broadcast_to(start, (len(masses), len(start))), float)
+        out[:, 0] += masses[:, 0] / masses.sum(axis=1)
+        return out
+
+    def log_prob(self, start, action, observed, masses, friction, lengths):
+        return -0.5 * np.sum(((observed - self._mean(start, masses)) / 0.01) ** 2, axis=1)
+
+
+def test_with_a_density_the_hypotheses_are_weighed_by_it_not_simulated():
+    hyp = hypothesis_filter(
+        SETTING, HYPOTHESES, friction_grid(SETTING, 3), density=ShareLikelihood()
+    )
+    try:
+        assert hyp.filter.density is not None and hyp.filter.config.likelihood == "learned"
+        assert hyp.filter.config.particles == 9  # the hypotheses, not the learned filter's 4096
+        hyp.reset(np.array([0.12, 0.12]), episode=0)
+        start = np.zeros(4)
+        observed = start + np.array([0.8, 0, 0, 0])  # the second hypothesis's share, 8 / 10
+        hyp.filter.update(start, np.array([0.5, 0.5]), observed)
+        weights = hyp.weights()
+        assert np.argmax(weights) == 1 and weights[1] > 0.99
+    finally:
+        hyp.close()

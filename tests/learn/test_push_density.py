@@ -170,3 +170,29 @@ def test_a_density_loads_only_for_the_chains_and_pusher_it_was_trained_for(datas
     with pytest.raises(ValueError, match="obs_noise"):
         density_for(config.out, EnvConfig(physics=SETTING.physics(), pusher="stiff",
                                           obs_noise=0.0))  # fmt: skip
+
+
+def test_placed_inputs_add_where_the_chain_lies():
+    start = np.array([0.7, -0.1, 0.5, 0.2])
+    args = (np.array([0.5, -0.5]), np.full((3, 2), 0.5), np.full(3, 0.7), np.array([0.12, 0.12]))
+    plain, placed = push_inputs(start, *args), push_inputs(start, *args, placed=True)
+    assert placed.shape == (3, plain.shape[1] + 4)
+    np.testing.assert_array_equal(placed[:, : plain.shape[1]], plain)
+    np.testing.assert_allclose(placed[0, -4:], [0.7, -0.1, np.cos(0.5), np.sin(0.5)])
+
+
+def test_a_density_sees_the_chains_place_only_where_asked_or_the_robot_stands_still(
+    dataset, tmp_path
+):
+    small = dict(data=(str(dataset),), steps=2, batch_size=16, width=8, depth=1, components=1)
+    train_push_density(DensityConfig(out=str(tmp_path / "a.pt"), **small), progress=False)
+    plain = load_push_density(tmp_path / "a.pt")  # the stiff pusher: the table is uniform
+    assert not plain.placed and plain.arch["inputs"] == 8
+    train_push_density(DensityConfig(out=str(tmp_path / "b.pt"), placed=True, **small),
+                       progress=False)  # fmt: skip
+    placed = load_push_density(tmp_path / "b.pt")
+    assert placed.placed and placed.arch["inputs"] == 12
+    start, masses = np.array([0.1, 0.0, 0.3, 0.2]), np.full((5, 2), 0.5)
+    logp = placed.log_prob(start, np.array([0.5, 0.5]), start, masses, np.full(5, 0.7),
+                           np.array([0.12, 0.12]))  # fmt: skip
+    assert logp.shape == (5,) and np.all(np.isfinite(logp))

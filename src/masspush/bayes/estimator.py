@@ -27,6 +27,7 @@ from masspush.env import ChainEnv
 from masspush.evaluate import EstimatorRun
 from masspush.metrics import percentage_error
 from masspush.settings import Setting
+from masspush.sim.pushers import reach_governor
 
 BAYES_MODELS = {"bayes": True, "bayes-random": False}
 """Model names `masspush evaluate` accepts for the filter: with information-seeking pushes,
@@ -34,10 +35,13 @@ or with the paper's random pushes."""
 
 
 def run_bayes_episode(
-    env, filt: ParticleFilter, policy: InfoSeekingPolicy | None, seed: int, pushes: int
-) -> dict:
+    env, filt: ParticleFilter, policy: InfoSeekingPolicy | None, seed: int, pushes: int,
+    governor=None,
+) -> dict:  # fmt: skip
     """One episode of a ChainEnv estimated by the filter; pushes chosen by `policy` (None:
-    uniform random). Returns the truth, the posterior after each push and the failure."""
+    uniform random), a stationary robot's through its speed `governor` as it makes them
+    (the policy's candidates are governed before they are compared). Returns the truth, the
+    posterior after each push and the failure."""
     obs, info = env.reset(seed=seed)
     d = env.physics.obs_dim
     result = {"truth": info["mass_distribution"], "posteriors": [], "actions": [],
@@ -54,6 +58,8 @@ def run_bayes_episode(
             # Random pushes over the same range as the information-seeking candidates, so
             # the two differ only in how a push is chosen.
             action = rng.uniform(-1, 1, 2) * (filt.config.max_push, 1.0)
+            if governor is not None:
+                action = governor(action, start, obs[d:])
         else:
             action = policy.act(start)
         result["actions"].append(np.asarray(action, float))
@@ -128,14 +134,17 @@ class BayesEstimator:
         """The raw results of episodes `indices` (what `_finish` turns into a run)."""
         env = ChainEnv.from_config(env_config)
         filt = filter_for(self.setting, self.pusher, self.config, seed, self.density)
-        policy = InfoSeekingPolicy(filt, seed) if self.seeking else None
+        governor = reach_governor(env_config.pusher, env_config.physics)
+        policy = InfoSeekingPolicy(filt, seed, governor) if self.seeking else None
         k = env_config.pushes
         out: dict = {"index": [], "estimates": [], "means": [], "truths": [], "inside": [],
                      "failures": 0, "unexplained": 0}  # fmt: skip
         for i in tqdm(indices, desc=self.label, disable=not progress):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", UnexplainedObservationWarning)
-                result = run_bayes_episode(env, filt, policy, episode_seed(EVAL, seed, int(i)), k)
+                result = run_bayes_episode(
+                    env, filt, policy, episode_seed(EVAL, seed, int(i)), k, governor
+                )
             out["unexplained"] += filt.warnings
             if result["failure"] is not None or len(result["posteriors"]) < k:
                 out["failures"] += 1  # left out of the metric, as the learned models' are

@@ -582,8 +582,11 @@ class ParticleFilter:
 class InfoSeekingPolicy:
     """Chooses each push to shrink the posterior of the mass distribution the most."""
 
-    def __init__(self, filt: ParticleFilter, seed: int = 0):
+    def __init__(self, filt: ParticleFilter, seed: int = 0, governor=None):
         self.filter, self.seed = filt, seed
+        self.governor = governor
+        """A stationary robot's speed governor (`masspush.sim.reach_governor`): each
+        candidate is compared as the robot would make it, slowed to keep the chain in reach."""
         self.rng = np.random.default_rng([seed, 37])
 
     def reset(self, episode: int) -> None:
@@ -594,6 +597,9 @@ class InfoSeekingPolicy:
         n = self.filter.candidates
         candidates = self.rng.uniform(-1, 1, size=(n, 2))
         candidates[:, 0] *= self.filter.config.max_push
+        if self.governor is not None:
+            lengths = self.filter.lengths
+            candidates = np.array([self.governor(a, start, lengths) for a in candidates], float)
         scores = self.filter.expected_variance(start, candidates)
         return candidates[int(np.argmin(scores))]
 

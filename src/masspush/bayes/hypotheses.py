@@ -13,7 +13,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from masspush.bayes.filter import ParticleFilter, default_config, filter_for
+from masspush.bayes.filter import ParticleFilter, PushLikelihood, default_config, filter_for
 
 
 def friction_grid(setting, count: int) -> np.ndarray:
@@ -64,11 +64,13 @@ def hypothesis_filter(
     pusher: str | None = None,
     lookahead: int | None = None,
     seed: int = 0,
+    density: PushLikelihood | None = None,
 ) -> HypothesisFilter:
     """The filter for chains of `setting` pushed by `pusher` (the setting's by default) whose
     particles are each of `hypotheses` (link masses) at each of `frictions`, never
     resampled; `lookahead` particles per candidate push (the setting's default, at most
-    all of them)."""
+    all of them). With a `density` (`masspush.learn.push_density`) it weighs pushes with
+    that learned likelihood instead of simulating each hypothesis."""
     masses = np.asarray(hypotheses, float)
     frictions = np.asarray(frictions, float)
     if masses.ndim != 2 or masses.shape[1] != setting.n_links or len(frictions) < 1:
@@ -77,7 +79,7 @@ def hypothesis_filter(
             f"one; got {masses.shape} and {frictions.shape}"
         )
     h, f = len(masses), len(frictions)
-    config = default_config(setting, pusher)
+    config = default_config(setting, pusher, "simulator" if density is None else "learned")
     lookahead = config.lookahead_particles if lookahead is None else lookahead
     config = replace(
         config,
@@ -85,5 +87,5 @@ def hypothesis_filter(
         ess_fraction=1e-9,  # never resampled: the hypotheses are the particles
         lookahead_particles=min(lookahead, h * f),
     )
-    filt = filter_for(setting, pusher, config=config, seed=seed)
+    filt = filter_for(setting, pusher, config=config, seed=seed, density=density)
     return HypothesisFilter(filt, np.repeat(masses, f, axis=0), np.tile(frictions, h), h)

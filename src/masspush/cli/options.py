@@ -119,7 +119,9 @@ def add_fields(
             text += f" (default: {_show(default)})" if default is not None else ""
         origin, args = typing.get_origin(tp), typing.get_args(tp)
         if tp is bool:
-            kwargs["action"] = argparse.BooleanOptionalAction if default else "store_true"
+            # True or None (decided later) can be turned off: --no-<field>.
+            on_off = default is not False
+            kwargs["action"] = argparse.BooleanOptionalAction if on_off else "store_true"
         elif origin is tuple and name in pairs:
             kwargs.update(type=args[0], nargs=len(args), metavar=("LOW", "HIGH")[: len(args)])
         elif origin is tuple:

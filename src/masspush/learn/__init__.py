@@ -1,6 +1,7 @@
 """Learning: the LSTM predictor (`predictor`), what the policy sees and earns (`features`),
 the PPO policy (`policy`, `vec_env`), the predictor as an estimator (`estimator`), learned
-uncertainty (`uncertainty`) and the paper's alternating recipe (`recipe`).
+uncertainty (`uncertainty`), the paper's alternating recipe (`recipe`) and the particle
+filter's learned likelihood (`push_density`).
 
 The names below are its public API (what experiments/ may import)."""
 
@@ -16,6 +17,8 @@ EXPORTS = {
     "estimator": ("PredictorEstimator",),
     "uncertainty": ("HeadConfig", "LearnedPosterior", "calibrate"),
     "recipe": ("FINETUNE", "PREDICTOR", "Recipe", "RecipeConfig"),
+    "push_density": ("DensityConfig", "PushDensity", "density_for", "load_push_density",
+                     "train_push_density"),
 }  # fmt: skip
 __getattr__ = lazy(__name__, EXPORTS)
 __all__ = names(EXPORTS)

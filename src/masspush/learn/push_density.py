@@ -16,7 +16,11 @@ instead of an arm simulation, so the filter can afford thousands.
 The outcome is expressed in the frame of the pose before the push (the table is uniform
 and the pushes are made relative to the chain): the first link's displacement in its own
 frame, its change of heading, and the joint angles after the push. The inputs: the joint
-angles before, the commanded action, log masses, log friction, and the link lengths.
+angles before, the commanded action, log masses, log friction, and the link lengths; for a
+stationary robot also where the chain lies (`placed`): its arm reaches each place in
+another posture, and its joints' speed limits bite in some (held-out log-likelihood on the
+stationary UR10's pushes 0.94 with the place, 0.61 without;
+docs/notebook/2026-12-04-stationary-ur10-density.md).
 A pushed chain that failed (out of reach, a timeout) is not in the training data: the
 filter leaves a failed push out, as the episode ends there.
 """
@@ -38,6 +42,7 @@ from torch.distributions import Categorical, MixtureSameFamily, MultivariateNorm
 from masspush.config import check_int, check_output
 from masspush.learn.predictor import check_batch_memory
 from masspush.sim.chain import wrap_angle
+from masspush.sim.pushers import pusher_kind
 
 PUSH_DENSITY_FILE = "push-density.pt"
 """The learned likelihood's file name in a setting's shipped models (`masspush.models`)."""
@@ -82,6 +87,10 @@ class DensityConfig:
     """Seed of the network's initial weights and of the batches."""
     checkpoint_every: int = 2000
     """Steps between checkpoints."""
+    placed: bool | None = None
+    """Whether the network sees where the chain lies on the table (`push_inputs`); None:
+    where the pusher stands still (a pusher with a workspace), since then a push's outcome
+    depends on where the robot reaches to, and elsewhere the table is uniform."""
 
     def __post_init__(self) -> None:
         if not self.data:
@@ -101,10 +110,12 @@ class DensityConfig:
 
 def push_inputs(
     start: np.ndarray, action: np.ndarray, masses: np.ndarray, friction: np.ndarray,
-    lengths: np.ndarray,
+    lengths: np.ndarray, placed: bool = False,
 ) -> np.ndarray:  # fmt: skip
     """The network's inputs (m, features) for m particles: `start` (d,) or (m, d) rest
-    poses, `action` (2,) or (m, 2), `masses` (m, n), `friction` (m,), `lengths` (n,) or (m, n)."""
+    poses, `action` (2,) or (m, 2), `masses` (m, n), `friction` (m,), `lengths` (n,) or (m, n).
+    `placed`: also where the chain lies on the table (the first link's position and
+    heading), for a stationary robot, whose pushes differ with where it reaches to."""
     masses = np.atleast_2d(np.asarray(masses, float))
     m = len(masses)
     start = np.broadcast_to(np.atleast_2d(np.asarray(start, float)), (m, masses.shape[1] + 2))
@@ -112,7 +123,10 @@ def push_inputs(
     lengths = np.broadcast_to(np.atleast_2d(np.asarray(lengths, float)), masses.shape)
     friction = np.broadcast_to(np.asarray(friction, float), (m,))
     # Lengths in decimetres keep every input of order one before standardising.
-    return np.column_stack([start[:, 3:], action, np.log(masses), np.log(friction), 10 * lengths])
+    shape = [start[:, 3:], action, np.log(masses), np.log(friction), 10 * lengths]
+    if placed:
+        shape += [start[:, :2], np.cos(start[:, 2:3]), np.sin(start[:, 2:3])]
+    return np.column_stack(shape)
 
 
 def push_outputs(start: np.ndarray, observed: np.ndarray) -> np.ndarray:
@@ -135,10 +149,13 @@ def rest_poses(start: np.ndarray, outputs: np.ndarray) -> np.ndarray:
     return np.column_stack([x, y, yaw, outputs[:, 3:]])
 
 
-def episode_pushes(episodes: Any, rows: slice = slice(None)) -> tuple[np.ndarray, np.ndarray]:
+def episode_pushes(
+    episodes: Any, rows: slice = slice(None), placed: bool = False
+) -> tuple[np.ndarray, np.ndarray]:
     """Every push of a dataset's episodes (`rows` of them) that did not fail, and none after
-    a failure: inputs and outputs (`push_inputs`, `push_outputs`), each from the observed
-    (noisy) rest pose before it to the observed one after, as the filter sees them."""
+    a failure: inputs and outputs (`push_inputs`, `push_outputs` with `placed`), each from
+    the observed (noisy) rest pose before it to the observed one after, as the filter sees
+    them."""
     obs = np.asarray(episodes.observations[rows], float)
     actions = np.asarray(episodes.actions[rows], float)
     masses = np.asarray(episodes.masses[rows], float)
@@ -149,7 +166,7 @@ def episode_pushes(episodes: Any, rows: slice = slice(None)) -> tuple[np.ndarray
     for k in range(actions.shape[1]):
         ok = intact[:, k]
         inputs.append(push_inputs(obs[ok, k], actions[ok, k], masses[ok], friction[ok],
-                                  lengths[ok]))  # fmt: skip
+                                  lengths[ok], placed))  # fmt: skip
         outputs.append(push_outputs(obs[ok, k], obs[ok, k + 1]))
     return np.concatenate(inputs), np.concatenate(outputs)
 
@@ -198,8 +215,16 @@ class PushDensity(nn.Module):
         parts = MultivariateNormal(mean, scale_tril=scale)
         return MixtureSameFamily(Categorical(logits=logits), parts)
 
+    @property
+    def placed(self) -> bool:
+        """Whether the network sees where the chain lies (`push_inputs`)."""
+        return bool(self.meta.get("placed", False))
+
     def _x(self, inputs: np.ndarray) -> torch.Tensor:
         return (torch.as_tensor(inputs, dtype=torch.float32) - self.x_mean) / self.x_std
+
+    def _inputs(self, start, action, masses, friction, lengths) -> torch.Tensor:
+        return self._x(push_inputs(start, action, masses, friction, lengths, self.placed))
 
     def _y(self, outputs: np.ndarray) -> torch.Tensor:
         return (torch.as_tensor(outputs, dtype=torch.float32) - self.y_mean) / self.y_std
@@ -211,7 +236,7 @@ class PushDensity(nn.Module):
     ) -> np.ndarray:  # fmt: skip
         """Log-density (m,) of the `observed` rest pose after `action` from `start`, under
         each of m particles' masses and frictions (up to a constant common to all)."""
-        dist = self.dist(self._x(push_inputs(start, action, masses, friction, lengths)))
+        dist = self.dist(self._inputs(start, action, masses, friction, lengths))
         return dist.log_prob(self._y(push_outputs(start, observed))).double().numpy()
 
     @torch.no_grad()
@@ -220,7 +245,7 @@ class PushDensity(nn.Module):
         friction: np.ndarray, lengths: np.ndarray,
     ) -> np.ndarray:  # fmt: skip
         """Log-density (q, m) of each of q `observed` rest poses under each of m particles."""
-        dist = self.dist(self._x(push_inputs(start, action, masses, friction, lengths)))
+        dist = self.dist(self._inputs(start, action, masses, friction, lengths))
         y = self._y(push_outputs(start, observed))
         return dist.log_prob(y[:, None, :]).double().numpy()
 
@@ -231,9 +256,7 @@ class PushDensity(nn.Module):
     ) -> np.ndarray:  # fmt: skip
         """One observed rest pose (m, d) per particle, drawn with `rng` (so a seeded filter
         stays deterministic)."""
-        logits, means, scales = self.mixture(
-            self._x(push_inputs(start, action, masses, friction, lengths))
-        )
+        logits, means, scales = self.mixture(self._inputs(start, action, masses, friction, lengths))
         m, k, d = means.shape
         p = torch.softmax(logits, dim=-1).double().numpy()
         pick = (rng.uniform(size=(m, 1)) > np.cumsum(p, axis=1)).sum(axis=1).clip(0, k - 1)
@@ -335,6 +358,10 @@ def train_push_density(config: DensityConfig, progress: bool = True) -> dict:
                 )
     setting = get_setting(first.setting["name"])
     meta = density_meta(first, setting.physics())
+    placed = config.placed
+    if placed is None:
+        placed = pusher_kind(first.pusher).workspace is not None
+    meta["placed"] = placed
     out, ckpt = Path(config.out), Path(f"{config.out}.ckpt")
     out.parent.mkdir(parents=True, exist_ok=True)
     fit, held = ([], []), ([], [])
@@ -342,7 +369,7 @@ def train_push_density(config: DensityConfig, progress: bool = True) -> dict:
         _, episodes = load_dataset(d)
         cut = len(episodes.masses) - max(1, round(config.held_out * len(episodes.masses)))
         for part, rows in ((fit, slice(0, cut)), (held, slice(cut, None))):
-            x, y = episode_pushes(episodes, rows)
+            x, y = episode_pushes(episodes, rows, placed)
             part[0].append(x)
             part[1].append(y)
     x_fit, y_fit = np.concatenate(fit[0]), np.concatenate(fit[1])

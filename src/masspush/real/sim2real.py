@@ -186,33 +186,40 @@ def _fitted_governor(config: Sim2RealConfig, setting):
     return fit_governor(governor, config.governor_fit)
 
 
+def class_robot(
+    setting, c: int, seed: int = 0, world=None, lab: int | None = None, pushes: int | None = None
+):  # fmt: skip
+    """The robot that pushes the chains of class `c` (of `PAPER_CLASSES`) in `masspush
+    sim2real --seed SEED`: in the target world `world` (a `TargetWorld`; `lab` one lab of
+    it), or with `world` None in the training world, there with room for `pushes` pushes.
+    Seeds differ between classes but not between a run's arms or experiments that use
+    this: they see the same chains, frictions and biases, so comparisons are paired."""
+    from masspush.real.backends import SimRobot
+    from masspush.real.target_world import TargetWorldRobot
+
+    masses = list(PAPER_CLASSES.values())[c]
+    first = seed + 100_000 * c
+    if world is not None:
+        return TargetWorldRobot(setting, world, seed=first, masses=masses, lab=lab)
+    # The classes are the paper's masses in any setting, as in the target world.
+    pushes = pushes or setting.env_config().pushes
+    return SimRobot(setting, seed=first, masses=masses, pushes=pushes, allow_out_of_range=True)
+
+
 def _record_class(shared: tuple, c: int, advance=None) -> tuple[list, dict, dict]:
     """Class `c`'s episodes, one robot for them all (its randomness runs on from episode to
     episode): the recorded episodes, the failed pushes by reason, the tally."""
-    from masspush.real.backends import SimRobot
     from masspush.real.robot import run_segments
-    from masspush.real.target_world import TargetWorldRobot
     from masspush.settings import get_setting
 
     config, predictor, policy, world, governor = shared
-    label, masses = list(PAPER_CLASSES.items())[c]
+    label = list(PAPER_CLASSES)[c]
     setting = get_setting(config.setting)
     pushes = setting.env_config().pushes
-    # Seeds differ between classes but are shared by the two arms: both see the same
-    # chains, frictions and biases, so the comparison is paired.
-    first = config.seed + 100_000 * c
-    robot = (
-        TargetWorldRobot(setting, world, seed=first, masses=masses, lab=config.lab)
-        if config.world == "target"
-        # The classes are the paper's masses in any setting, as in the target world.
-        else SimRobot(
-            setting,
-            seed=first,
-            masses=masses,
-            pushes=pushes * config.segments,
-            allow_out_of_range=True,
-        )
-    )
+    robot = class_robot(
+        setting, c, config.seed, world if config.world == "target" else None, config.lab,
+        pushes * config.segments,
+    )  # fmt: skip
     if governor is not None:
         robot.governor = governor
     episodes, failures = [], {}
