@@ -123,10 +123,10 @@ def push_inputs(
     lengths = np.broadcast_to(np.atleast_2d(np.asarray(lengths, float)), masses.shape)
     friction = np.broadcast_to(np.asarray(friction, float), (m,))
     # Lengths in decimetres keep every input of order one before standardising.
-    shape = [start[:, 3:], action, np.log(masses), np.log(friction), 10 * lengths]
+    columns = [start[:, 3:], action, np.log(masses), np.log(friction), 10 * lengths]
     if placed:
-        shape += [start[:, :2], np.cos(start[:, 2:3]), np.sin(start[:, 2:3])]
-    return np.column_stack(shape)
+        columns += [start[:, :2], np.cos(start[:, 2:3]), np.sin(start[:, 2:3])]
+    return np.column_stack(columns)
 
 
 def push_outputs(start: np.ndarray, observed: np.ndarray) -> np.ndarray:
