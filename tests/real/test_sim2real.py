@@ -7,6 +7,7 @@ from masspush.data.recording import read_recording
 from masspush.real.finetune import PAPER_CLASSES, ClassifierConfig
 from masspush.real.sim2real import (
     Sim2RealConfig,
+    class_robot,
     paired_test,
     plot_accuracy_by_pushes,
     run_counts,
@@ -292,3 +293,25 @@ def test_the_classes_recorded_on_a_pool_are_the_classes_recorded_here(serial_poo
     pooled = record_classes(CONFIG, predictor, policy, "t", workers=serial_pool(size=5))
     assert pooled[1:] == here[1:]  # failures and each class's tally
     assert json.dumps(pooled[0].episodes, default=str) == json.dumps(here[0].episodes, default=str)
+
+
+def test_each_class_s_robot_pushes_that_class_s_chains_in_the_world_asked():
+    from masspush.real.backends import SimRobot
+    from masspush.real.target_world import TargetWorld, TargetWorldRobot
+    from masspush.settings import get_setting
+
+    setting = get_setting("2link-1-10")
+    training = class_robot(setting, 3, seed=5, pushes=4)
+    lab = class_robot(setting, 3, seed=5, world=TargetWorld(), lab=2)
+    try:
+        assert isinstance(training, SimRobot) and isinstance(lab, TargetWorldRobot)
+        assert training.seed == lab.seed == 5 + 300_000  # the chains of sim2real --seed 5
+        for robot in (training, lab):
+            robot.start()
+            np.testing.assert_allclose(robot.truth["masses"], list(PAPER_CLASSES.values())[3])
+        again = class_robot(setting, 3, seed=5, pushes=4)
+        np.testing.assert_allclose(again.start().config, class_robot(setting, 3, 5).start().config)
+        again.close()
+    finally:
+        training.close()
+        lab.close()
