@@ -30,7 +30,6 @@ import numpy as np
 from tqdm import tqdm
 
 import masspush.bayes as bayes
-from masspush.config import EnvConfig
 from masspush.data import read_recording
 from masspush.learn import density_for
 from masspush.real import labelled
@@ -119,9 +118,8 @@ def main() -> None:
     frictions = bayes.friction_grid(setting, args.frictions)
     density = None
     if args.density is not None:
-        env = EnvConfig(physics=setting.physics(), pusher=args.pusher or setting.pusher)
         try:
-            density = density_for(args.density, env)
+            density = density_for(args.density, setting.env_config(args.pusher))
         except ValueError as err:
             parser.error(f"--density: {err}")
     suffix = ".oracle.json" if density is None else ".oracle-learned.json"

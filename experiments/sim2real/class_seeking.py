@@ -30,7 +30,6 @@ import numpy as np
 from tqdm import tqdm
 
 import masspush.bayes as bayes
-from masspush.config import EnvConfig
 from masspush.learn import density_for
 from masspush.real import (
     PAPER_CLASSES,
@@ -149,9 +148,7 @@ def main() -> None:
     density, setting = None, get_setting("real-ur10")
     if args.density is not None:
         try:
-            density = density_for(
-                args.density, EnvConfig(physics=setting.physics(), pusher=setting.pusher)
-            )
+            density = density_for(args.density, setting.env_config())
         except ValueError as err:
             parser.error(f"--density: {err}")
     out = Path(args.out)

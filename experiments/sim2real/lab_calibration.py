@@ -27,7 +27,6 @@ from pathlib import Path
 import numpy as np
 
 import masspush.bayes as bayes
-from masspush.config import EnvConfig
 from masspush.learn import density_for
 from masspush.real import PAPER_CLASSES, stratified_folds
 from masspush.settings import get_setting
@@ -78,9 +77,7 @@ def main() -> None:
         parser.error(f"episodes: cannot use {path} ({getattr(err, 'strerror', None) or err})")
     setting = get_setting("real-ur10")
     try:
-        density = density_for(
-            args.density, EnvConfig(physics=setting.physics(), pusher=setting.pusher)
-        )
+        density = density_for(args.density, setting.env_config())
     except ValueError as err:
         parser.error(f"--density: {err}")
     pushes = args.pushes or max(len(e["actions"]) for e in episodes)

@@ -19,7 +19,7 @@ from typing import Any
 
 from masspush.bayes.estimator import BAYES_MODELS, BayesEstimator
 from masspush.cluster.pool import open_pool
-from masspush.config import EnvConfig, check_match, check_output
+from masspush.config import check_match, check_output
 from masspush.evaluate import Estimator, EvalResult, EvaluateConfig, evaluate
 from masspush.learn.estimator import PredictorEstimator
 from masspush.learn.policy import model_policy, strip_policy
@@ -99,8 +99,8 @@ def load_estimator(
                     f"no shipped push density for setting {setting.name!r}: train one "
                     "(`masspush train-density`) and pass --bayes density=FILE"
                 )
-            env = EnvConfig(physics=setting.physics(), pusher=pusher or setting.pusher)
-            density = density_for(path, env)  # a bad file is refused before any episode
+            # a bad file is refused before any episode
+            density = density_for(path, setting.env_config(pusher))
         return BayesEstimator(
             setting, str(model), pusher, overrides=bayes or None, progress=progress,
             density=density,
