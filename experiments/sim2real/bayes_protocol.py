@@ -153,6 +153,9 @@ def main() -> None:
     for name in ("episodes", "pushes"):
         if getattr(args, name) < 1:
             parser.error(f"--{name} must be at least 1")
+    for name in ("lab", "chains", "seed"):  # seeds of worlds and chains
+        if (getattr(args, name) or 0) < 0:
+            parser.error(f"--{name} must be at least 0")
     setting = get_setting(SETTING)
     try:
         density = density_for(args.density, setting.env_config())

@@ -145,6 +145,9 @@ def main() -> None:
     for name in ("episodes", "candidates", "lookahead", "frictions", "pushes"):
         if getattr(args, name) < 1:
             parser.error(f"--{name} must be at least 1")
+    for name in ("lab", "chains", "seed"):  # seeds of worlds and chains
+        if (getattr(args, name) or 0) < 0:
+            parser.error(f"--{name} must be at least 0")
     density, setting = None, get_setting("real-ur10")
     if args.density is not None:
         try:

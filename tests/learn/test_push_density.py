@@ -148,6 +148,8 @@ def test_bad_configs_and_files_are_one_line_errors(tmp_path):
         DensityConfig(data=("d",), out="x.pt", batch_size=10**12)
     with pytest.raises(ValueError, match="no such file"):
         load_push_density(tmp_path / "none.pt")
+    with pytest.raises(ValueError, match="a directory, not a model file"):
+        load_push_density(tmp_path)
     garbage = tmp_path / "g.pt"
     garbage.write_bytes(b"\x00not a model")
     with pytest.raises(ValueError, match="cannot be read"):

@@ -282,6 +282,8 @@ def load_push_density(path: str | os.PathLike) -> PushDensity:
     """A model file written by `train_push_density`; a file that is not one is a one-line
     error naming it."""
     path = Path(path)
+    if path.is_dir():
+        raise ValueError(f"push density {path}: a directory, not a model file")
     if not path.is_file():
         raise ValueError(f"push density {path}: no such file")
     try:
