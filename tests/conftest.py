@@ -55,6 +55,22 @@ def model_file(tmp_path_factory):
     return path
 
 
+@pytest.fixture(scope="session")
+def density_file(tmp_path_factory):
+    """A briefly trained 2link-1-10 push density (stiff pusher): a cheap learned likelihood
+    for the particle filter's tests."""
+    from masspush.data.dataset import CollectConfig, collect_dataset
+    from masspush.learn.push_density import DensityConfig, train_push_density
+
+    root = tmp_path_factory.mktemp("density")
+    collect_dataset(CollectConfig(setting="2link-1-10", out=str(root / "data"), episodes=60,
+                                  shard_size=30), progress=False)  # fmt: skip
+    config = DensityConfig(data=(str(root / "data"),), out=str(root / "density.pt"), steps=200,
+                           batch_size=64, width=32, depth=2, components=2)  # fmt: skip
+    train_push_density(config, progress=False)
+    return root / "density.pt"
+
+
 class SerialPool:
     """A `TaskPool` that runs its tasks here, in reverse order (a cluster returns them in
     any order): the driver-side logic of the pool path without a cluster. `stop_after`

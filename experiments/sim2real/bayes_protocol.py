@@ -17,7 +17,9 @@ same seeds, class by class) in the training world or in one lab of the target wo
         --pushes 16 [--lab 5 [--governor-fit RANDOM.jsonl]] [--episodes 30] \
         [--out results/bayes-protocol.json]
 
-Each finished episode is kept in --out, so a stopped run resumes.
+Each finished episode is kept in --out, so a stopped run resumes. The same protocol is now an
+arm of `masspush sim2real` (`--learned-model bayes [--density FILE]`), with its recordings and
+summary; this script stays to rerun the numbers of 2026-12-04's notebook.
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ import time
 import numpy as np
 import pytest
 
-from masspush.data.dataset import DatasetError, collect, load_dataset, shard_path
+from masspush.data.dataset import DatasetError, collect, load_dataset, read_manifest, shard_path
 from masspush.settings import get_setting
 
 SETTING = get_setting("2link-0.1-1")
@@ -86,6 +86,19 @@ def test_corrupt_truncated_and_foreign_datasets_are_refused(tmp_path):
         load_dataset(root)
     with pytest.raises(DatasetError, match="not a masspush dataset"):
         load_dataset(tmp_path)
+
+
+def test_a_manifest_says_where_its_episodes_were_pushed(tmp_path):
+    root = tmp_path / "d"
+    small(root)
+    assert read_manifest(root).worlds == "setting"
+    manifest = json.loads((root / "manifest.json").read_text())
+    del manifest["worlds"]  # as written before the field existed
+    (root / "manifest.json").write_text(json.dumps(manifest))
+    assert read_manifest(root).worlds == "setting"
+    (root / "manifest.json").write_text(json.dumps({**manifest, "worlds": "mars"}))
+    with pytest.raises(DatasetError, match="worlds must be one of"):
+        read_manifest(root)
 
 
 def test_resuming_with_other_parameters_is_refused(tmp_path):

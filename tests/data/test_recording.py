@@ -26,11 +26,12 @@ EPISODE = {
     "label": "even",
     "masses": [0.16, 0.16],
     "speeds": [2.5, 4.2],
+    "estimates": [[0.6, 0.4], [0.55, 0.45]],
     "failure": "left_workspace",
 }
 
 
-NUMBERS = ("lengths", "observations", "actions", "masses", "speeds")
+NUMBERS = ("lengths", "observations", "actions", "masses", "speeds", "estimates")
 
 
 def write_lines(tmp_path, *objects) -> str:
@@ -71,7 +72,7 @@ def test_a_bad_geometry_is_a_header_problem(tmp_path, geometry):
 def test_a_recording_round_trips_and_becomes_predictor_input(tmp_path):
     short = {**EPISODE, "id": "b", "observations": EPISODE["observations"][:2]}
     short["actions"] = EPISODE["actions"][:1]
-    del short["label"], short["masses"], short["speeds"], short["failure"]
+    del short["label"], short["masses"], short["speeds"], short["failure"], short["estimates"]
     recording = Recording(n_links=2, robot="ur10", setting="2link-0.1-1", episodes=[EPISODE, short])
     path = write_recording(tmp_path / "r.jsonl", recording)
     back = read_recording(path)
@@ -129,6 +130,10 @@ def test_header_problems_name_line_and_field(tmp_path, change, line, field, mess
         ({"speeds": [1.0]}, "speeds", "must be a 2 array"),
         ({"speeds": [1.0, -0.5]}, "speeds", ">= 0 (m/s)"),
         ({"speeds": None}, "speeds", "leave the field out"),
+        ({"estimates": [[0.5, 0.5]]}, "estimates", "must be a 2 x 2 array"),
+        ({"estimates": [[0.5, 0.6], [0.5, 0.5]]}, "estimates", "add up to 1"),
+        ({"estimates": [[1.5, -0.5], [0.5, 0.5]]}, "estimates", "add up to 1"),
+        ({"estimates": None}, "estimates", "leave the field out"),
         ({"failure": ""}, "failure", "non-empty string"),
         ({"failure": 3}, "failure", "non-empty string"),
     ],

@@ -81,6 +81,31 @@ def test_a_stopped_collection_resumes_to_the_same_episodes(tmp_path):
     assert json.loads((tmp_path / "randomise.json").read_text())["setting"] == SETTING
 
 
+def test_randomised_episodes_are_a_dataset_a_density_trains_on(tmp_path):
+    from masspush.data.dataset import CollectConfig, collect_dataset, load_dataset
+    from masspush.learn.push_density import (
+        DensityConfig,
+        load_push_density,
+        train_push_density,
+    )
+
+    episodes = collect_randomised(replace(TINY, model="rp"), tmp_path / "r", workers=1,
+                                  progress=False)  # fmt: skip
+    manifest, loaded = load_dataset(tmp_path / "r")
+    assert (manifest.worlds, manifest.policy, manifest.episodes) == ("randomised", "random", 4)
+    np.testing.assert_array_equal(loaded.observations, episodes.observations)
+    small = dict(steps=2, batch_size=8, width=8, depth=1, components=1)
+    out = tmp_path / "d.pt"
+    train_push_density(DensityConfig(data=(str(tmp_path / "r"),), out=str(out), **small),
+                       progress=False)  # fmt: skip
+    assert load_push_density(out).meta["worlds"] == "randomised"
+    collect_dataset(CollectConfig(setting=SETTING, out=str(tmp_path / "s"), episodes=4),
+                    progress=False)  # fmt: skip
+    mixed = DensityConfig(data=(str(tmp_path / "s"), str(tmp_path / "r")), out=str(out), **small)
+    with pytest.raises(ValueError, match="has worlds 'randomised'"):
+        train_push_density(mixed, progress=False)
+
+
 def test_the_fine_tuned_predictor_keeps_its_policy_and_names_its_worlds(tmp_path):
     from masspush.learn.predictor import load_model
 

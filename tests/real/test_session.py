@@ -70,3 +70,25 @@ def _stiff_geometry():
     from masspush.config import PhysicsConfig
 
     return PhysicsConfig().geometry
+
+
+def test_runs_of_the_policy_push_on_past_the_settings_pushes():
+    # The simulated robot's episode is long enough for every run (it ended after 2 before).
+    episodes = run_session(
+        SessionConfig(robot="stiff", setting=SETTING, model="rp", segments=3), say=lambda _: None
+    )
+    assert len(episodes[0]["actions"]) == 6 or "failure" in episodes[0]
+
+
+@pytest.mark.slow
+def test_the_particle_filter_runs_a_session_and_records_its_estimates(tmp_path):
+    said = []
+    config = SessionConfig(robot="stiff", setting=SETTING, model="bayes", segments=2,
+                           record=str(tmp_path / "r.jsonl"))  # fmt: skip
+    (episode,) = run_session(config, say=said.append)
+    assert "particle filter (information-seeking)" in said[0]
+    assert not any("averaged over" in line for line in said)  # its estimate keeps every push
+    assert len(episode["estimates"]) == len(episode["actions"])
+    with pytest.raises(ValueError, match="chooses its own pushes"):
+        SessionConfig(robot="replay", setting=SETTING, model="bayes",
+                      episodes_file=str(tmp_path / "r.jsonl"))  # fmt: skip

@@ -315,3 +315,45 @@ def test_each_class_s_robot_pushes_that_class_s_chains_in_the_world_asked():
     finally:
         training.close()
         lab.close()
+
+
+def test_the_particle_filter_is_an_arm_scored_on_the_estimates_it_recorded(density_file, tmp_path):
+    from dataclasses import replace
+
+    config = replace(CONFIG, world="training", segments=2, density=str(density_file),
+                     models={"random": "rp", "learned": "bayes"})  # fmt: skip
+    results = run_sim2real(config, tmp_path, progress=False)
+    recording = read_recording(tmp_path / "learned.jsonl")
+    assert recording.robot == (
+        "masspush training world, 2 runs of the policy per episode, bayes weighing pushes "
+        "with density.pt"
+    )
+    assert all(len(e["estimates"]) == len(e["actions"]) for e in recording.episodes)
+    learned = results["arms"]["learned"]
+    assert learned["kinds"] == ["estimate"] and "lstm" not in learned
+    # Read from the recorded estimates: the posterior after all pushes, and after the first 2.
+    assert [s["pushes"] for s in learned["by_runs"]] == [2, 4]
+    assert learned["by_runs"][-1]["estimate"] == learned["estimate"]["accuracy"]
+    assert set(results["paired"]) == {"estimate"}
+    summary = (tmp_path / "summary.md").read_text()
+    assert "| learned | bayes |" in summary and "learned, LSTM" not in summary
+    assert (tmp_path / "accuracy-by-pushes.png").stat().st_size > 0
+    # A recording without its estimates cannot be scored as the filter's.
+    lines = (tmp_path / "learned.jsonl").read_text().splitlines()
+    bare = [lines[0]] + [
+        json.dumps({k: v for k, v in json.loads(line).items() if k != "estimates"})
+        for line in lines[1:]
+    ]
+    (tmp_path / "learned.jsonl").write_text("\n".join(bare) + "\n")
+    with pytest.raises(ValueError, match="has no estimates"):
+        run_sim2real(config, tmp_path, progress=False)
+
+
+def test_a_density_is_checked_before_any_episode(density_file, tmp_path):
+    with pytest.raises(ValueError, match="no arm's model is bayes"):
+        Sim2RealConfig(setting="2link-1-10", density=str(density_file))
+    bayes = {"random": "rp", "learned": "bayes"}
+    with pytest.raises(ValueError, match=r"density: push density .* n_links 2, not 3"):
+        Sim2RealConfig(setting="3link-1-10", density=str(density_file), models=bayes)
+    with pytest.raises(ValueError, match=r"density: .*no such file"):
+        Sim2RealConfig(setting="2link-1-10", density=str(tmp_path / "x.pt"), models=bayes)

@@ -49,6 +49,8 @@ from masspush.sim.pushers import pusher_field, pusher_kind
 
 SCHEMA_VERSION = 1
 MANIFEST = "manifest.json"
+WORLDS = ("setting", "randomised", "target")
+"""Where a dataset's episodes were pushed (`Manifest.worlds`)."""
 
 
 class DatasetError(ValueError):
@@ -91,6 +93,13 @@ class Manifest:
     shard_size: int
     code_version: str
     created: str
+    worlds: str = "setting"
+    """Where the episodes were pushed: "setting", the setting's own simulated world
+    (`masspush collect`); "randomised", a world drawn per episode from
+    `masspush.real.WorldRanges`, or "target", the sim-to-real target world, each as that
+    world's robot observed it (`masspush randomise`; the noise fields are then the
+    setting's, what the robot's software assumes). Manifests written before this field
+    existed are the setting's."""
 
     @property
     def shards(self) -> int:
@@ -102,6 +111,11 @@ class Manifest:
         for key in ("episodes", "code_version", "created"):
             d.pop(key)
         return d
+
+
+def write_manifest(root: str | os.PathLike, manifest: Manifest) -> None:
+    """Write `manifest` as `root`'s (atomically, as the shards)."""
+    _write_json(Path(root) / MANIFEST, asdict(manifest))
 
 
 def shard_path(root: Path, j: int) -> Path:
@@ -123,11 +137,14 @@ def read_manifest(root: str | os.PathLike) -> Manifest:
             f"{SCHEMA_VERSION}: recollect the data, or use the masspush that wrote it"
         )
     try:
-        return Manifest(**data)
+        manifest = Manifest(**data)
     except TypeError as err:
         raise DatasetError(
             f"{path} does not have the schema-{SCHEMA_VERSION} fields: {err}"
         ) from None
+    if manifest.worlds not in WORLDS:
+        raise DatasetError(f"{path}: worlds must be one of {list(WORLDS)}, got {manifest.worlds!r}")
+    return manifest
 
 
 @dataclass(frozen=True)
@@ -243,7 +260,7 @@ def collect(
             )
         manifest = _resized(root, old, episodes, resize)
     if old is None or old.episodes != manifest.episodes:
-        _write_json(root / MANIFEST, asdict(manifest))  # unchanged: read-only storage is fine
+        write_manifest(root, manifest)  # unchanged: read-only storage is fine
     todo = [j for j in range(manifest.shards) if not _complete(root, manifest, j)]
     missing = sum(_shard_len(manifest, j) for j in todo)
     _check_disk(root, env_config, missing)
@@ -407,7 +424,8 @@ def load_dataset(root: str | os.PathLike, limit: int | None = None) -> tuple[Man
         if not path.exists():
             raise DatasetError(
                 f"{root} is incomplete: {path.name} is missing; resume the collection "
-                f"(masspush collect ... --out {root})"
+                f"({'masspush randomise' if manifest.worlds != 'setting' else 'masspush collect'}"
+                f" ... --out {root})"
             )
         part = read_shard(path)
         if len(part) != _shard_len(manifest, j):

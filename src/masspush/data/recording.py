@@ -12,7 +12,8 @@ Observations are the chain's rest configurations q_0..q_k in the table frame (x,
 yaw and joint angles in rad), one more than the actions; actions are the pushes as the
 policy chose them, in masspush's action box [-1, 1]^2 (docs/real-robot.md gives the
 mapping to a contact point, direction and speed). `label`, `masses`, `notes`, `failure` (why
-the episode ended early) and `speeds` (each push's speed as executed) are optional.
+the episode ended early), `speeds` (each push's speed as executed) and `estimates` (the
+estimator's mass distribution after each push, as it ran) are optional.
 
 `check_recording` reports every problem with its line and field; `read_recording` refuses
 a file with any problem and returns it as `Episodes` (the predictor's input).
@@ -42,6 +43,7 @@ GEOMETRY_FIELDS = ("link_width", "link_height", "joint_gap", "tool_radius")
 """The header's optional `geometry`: the lab's chain and tool, m (`config.ChainGeometry`)."""
 EPISODE_FIELDS = {
     "id", "lengths", "observations", "actions", "label", "masses", "notes", "failure", "speeds",
+    "estimates",
 }  # fmt: skip
 
 
@@ -328,7 +330,7 @@ def _compact(episode: dict[str, Any]) -> dict[str, Any]:
     out = dict(episode)
     for key, dtype in (("observations", np.float32), ("actions", np.float32),
                        ("lengths", np.float64), ("masses", np.float64),
-                       ("speeds", np.float32)):  # fmt: skip
+                       ("speeds", np.float32), ("estimates", np.float32)):  # fmt: skip
         if key in out:
             out[key] = np.asarray(out[key], dtype)
     return out
@@ -439,6 +441,16 @@ def _check_episode(line: int, e: dict, n_links: int | None, problems: list[Probl
         speeds = _numbers(e["speeds"], "speeds", line, problems, shape=(pushes,))
         if speeds is not None and np.any(speeds < 0):
             bad("speeds", "speeds reached must be >= 0 (m/s)")
+    if "estimates" in e:
+        if e["estimates"] is None:
+            bad("estimates", "must be an array of numbers; leave the field out where unknown")
+        pushes = None if acts is None else len(acts)
+        shares = _numbers(e["estimates"], "estimates", line, problems, shape=(pushes, n_links))
+        if shares is not None and (
+            np.any(shares < 0) or np.any(np.abs(shares.sum(axis=1) - 1) > 1e-3)
+        ):
+            bad("estimates", "each push's estimate is a mass distribution: shares >= 0 "
+                "that add up to 1")  # fmt: skip
 
 
 def _numbers(value, name, line, problems, shape) -> np.ndarray | None:

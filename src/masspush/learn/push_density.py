@@ -65,7 +65,9 @@ class DensityConfig:
     data: tuple[str, ...]
     """Dataset directories of one setting and pusher (`masspush collect`), any policies:
     random pushes cover the actions the filter compares, a learned policy's add depth
-    where it pushes."""
+    where it pushes. Episodes of `masspush randomise` (worlds drawn per episode) give a
+    likelihood that covers what differs between worlds; all directories must have been
+    pushed in the same kind of world."""
     out: str
     """The model file to write; its checkpoint beside it (`OUT.ckpt`) resumes a stopped run."""
     steps: int = 60_000
@@ -337,6 +339,8 @@ def density_meta(manifest: Any, physics: Any) -> dict:
         "friction_range": [float(v) for v in physics.friction_range],
         "obs_noise": float(manifest.obs_noise),
         "action_noise": float(manifest.action_noise),
+        # "randomised": a likelihood of many worlds, broader than the setting's own
+        "worlds": manifest.worlds,
     }
 
 
@@ -352,7 +356,7 @@ def train_push_density(config: DensityConfig, progress: bool = True) -> dict:
     manifests = [read_manifest(d) for d in config.data]  # checks every directory first
     first = manifests[0]
     for path, other in zip(config.data[1:], manifests[1:], strict=True):
-        for key in ("setting", "pusher", "obs_noise", "action_noise"):
+        for key in ("setting", "pusher", "obs_noise", "action_noise", "worlds"):
             if getattr(other, key) != getattr(first, key):
                 raise ValueError(
                     f"data: {path} has {key} {getattr(other, key)!r}, "

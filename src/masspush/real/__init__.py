@@ -1,8 +1,8 @@
 """The real-robot path: the robot interface (`robot`) and its backends (`backends`), a session
 through a robot (`session`), the classifier fine-tuned on real episodes (`finetune`,
 `classify`), the sim-to-real test world (`target_world`, `sim2real`) and domain
-randomisation (`randomise`, `robot_env`), and a stationary robot's speed governor fitted to a
-lab's pushes (`governor`).
+randomisation (`randomise`, `robot_env`), a stationary robot's speed governor fitted to a
+lab's pushes (`governor`), and the particle filter as an arm of the protocol (`filter_arm`).
 
 The names below are its public API (what experiments/ may import); those of the 0.1 module
 `masspush.robot` are among them (`masspush.robot` itself still imports, as this package)."""
@@ -26,11 +26,13 @@ EXPORTS = {
     "target_world": ("TRAINING_KNOBS", "Lab", "TargetWorld", "TargetWorldRobot", "WorldRanges",
                      "scaled_world"),
     "sim2real": ("ARMS", "FEATURE_KINDS", "FEATURE_NAMES", "Sim2RealConfig", "Sim2RealJob",
-                 "class_robot", "paired_test", "plot_accuracy_by_pushes", "record_arm",
-                 "record_classes", "run_sim2real", "score_arm", "sim2real"),
+                 "arm_feature_kinds", "bayes_arm", "class_robot", "paired_test",
+                 "plot_accuracy_by_pushes", "record_arm", "record_classes", "run_sim2real",
+                 "score_arm", "sim2real"),
     "randomise": ("RandomiseConfig", "RandomiseRun", "randomise", "run_randomised"),
     "robot_env": ("RobotEnv",),
     "governor": ("episode_pushes", "fit_governor", "recording_pushes"),
+    "filter_arm": ("FilterArm",),
 }  # fmt: skip
 __getattr__ = lazy(__name__, EXPORTS)
 __all__ = names(EXPORTS)

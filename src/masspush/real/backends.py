@@ -153,14 +153,16 @@ def make_robot(
     masses: tuple[float, ...] | None = None,
     lab: int | None = None,
     allow_out_of_range: bool = False,
+    pushes: int | None = None,
 ) -> Robot:
     """A robot by backend name: stiff, kuka, ur10 (simulated), target (the sim-to-real
     target world, `masspush.real.target_world`; `lab` keeps one lab's constants) or replay (a
-    recording)."""
+    recording). `pushes`: the most pushes an episode may get (a simulated robot's episode
+    otherwise ends after the setting's)."""
     if lab is not None and backend != "target":
         raise ValueError(f"a lab is one draw of the target world; backend {backend!r} has none")
     if backend in PUSHERS:
-        return SimRobot(setting, backend, seed, masses, allow_out_of_range=allow_out_of_range)
+        return SimRobot(setting, backend, seed, masses, pushes, allow_out_of_range)
     if backend == "target":
         return TargetWorldRobot(setting, seed=seed, masses=masses, lab=lab)
     if backend == "replay":

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import json
 import os
+import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field, replace
 from functools import partial
@@ -34,7 +35,8 @@ import numpy as np
 from tqdm import tqdm
 
 from masspush.config import check_int
-from masspush.data.rollout import Episodes, empty_episodes, failure_code
+from masspush.data.dataset import Manifest, write_manifest
+from masspush.data.rollout import TRAIN, Episodes, empty_episodes, failure_code
 from masspush.real.robot_env import RobotEnv
 from masspush.real.target_world import TargetWorld, TargetWorldRobot, WorldRanges
 
@@ -200,6 +202,9 @@ def collect_randomised(
                 f"{root} holds episodes of another randomisation ({old}); use another --out"
             )
     stamp.write_text(json.dumps(identity, indent=2) + "\n")
+    # ... and a dataset manifest, so that what reads datasets (`masspush train-density`)
+    # reads these episodes too, knowing where they were pushed.
+    write_manifest(root, _manifest(config, model_file))
 
     todo = [
         j for j in range(config.shards)
@@ -215,6 +220,24 @@ def collect_randomised(
                 for job in as_completed(jobs):
                     bar.update(job.result()[1])
     return Episodes.concatenate([read_shard(shard_path(root, j)) for j in range(config.shards)])
+
+
+def _manifest(config: RandomiseConfig, model_file: str | os.PathLike) -> Manifest:
+    from masspush.data.dataset import SCHEMA_VERSION, code_version
+    from masspush.models import model_and_policy
+    from masspush.settings import get_setting
+
+    setting = get_setting(config.setting)
+    env_config = setting.env_config()
+    policy = model_and_policy(model_file, setting.name)[2]
+    return Manifest(
+        schema_version=SCHEMA_VERSION, setting=setting.as_dict(), pusher=env_config.pusher,
+        policy=policy.name, obs_noise=env_config.obs_noise,
+        action_noise=env_config.action_noise, pushes=env_config.pushes,
+        base_seed=config.base_seed, purpose=TRAIN, episodes=config.episodes,
+        shard_size=config.shard_size, code_version=code_version(),
+        created=time.strftime("%Y-%m-%dT%H:%M:%S%z"), worlds=config.world,
+    )  # fmt: skip
 
 
 def train_randomised_policy(

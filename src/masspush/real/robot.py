@@ -133,6 +133,8 @@ class EstimationEpisode:
         }
         if kept and all(r.speed is not None for r in kept):
             episode["speeds"] = [r.speed for r in kept]
+        if kept and len(self.estimates) == len(kept):
+            episode["estimates"] = self.estimates
         if self.failure is not None:
             episode["failure"] = self.failure
         return episode

@@ -8,12 +8,14 @@ from pathlib import Path
 
 import numpy as np
 
+from masspush.bayes.estimator import BAYES_MODELS
 from masspush.config import check_input, check_int, check_match, check_output
 from masspush.data.recording import Recording, read_recording, write_recording
 from masspush.learn.policy import model_policy
 from masspush.learn.predictor import load_model
-from masspush.models import resolve_model
+from masspush.models import load_estimator, resolve_model
 from masspush.real.backends import BACKENDS, RecordedPolicy, make_robot
+from masspush.real.filter_arm import FilterArm
 from masspush.real.robot import check_geometry, fmt, print_push, run_segments
 from masspush.settings import Setting, get_setting
 from masspush.sim.pushers import PUSHERS
@@ -28,7 +30,8 @@ class SessionConfig:
     setting: str
     """Named setting, e.g. 2link-0.1-1."""
     model: str = "tp+"
-    """Shipped model name (rp, rp+, tp, tp+) or a model file."""
+    """Shipped model name (rp, rp+, tp, tp+), a model file, or the particle filter (bayes:
+    its information-seeking pushes and estimates; bayes-random: random pushes)."""
     episodes_file: str | None = None
     """replay: the recording to play."""
     count: int | None = None
@@ -82,6 +85,11 @@ class SessionConfig:
                 raise ValueError(
                     "segments runs the policy again; a replay plays its recorded pushes"
                 )
+            if self.model in BAYES_MODELS:
+                raise ValueError(
+                    f"model {self.model}: the particle filter here chooses its own pushes; a "
+                    "replay plays recorded ones"
+                )
         if self.masses is not None and not all(np.isfinite(m) and m > 0 for m in self.masses):
             raise ValueError(f"masses must be positive, got {list(self.masses)}")
         if self.label is not None and not self.label.isprintable():
@@ -106,13 +114,19 @@ def run_session(config: SessionConfig, say=print) -> list[dict]:
                 f"[{lo:g}, {hi:g}]; pass --allow-out-of-range to simulate them anyway"
             )
     existing = _recording_to_extend(config.record, setting)
-    path = resolve_model(config.model, setting.name)
-    predictor, meta = load_model(
-        path, setting.name, allow_mismatch=config.allow_mismatch, n_links=setting.n_links
-    )
+    filter_arm = None
+    if config.model in BAYES_MODELS:
+        estimator = load_estimator(config.model, setting, progress=False)
+        predictor = filter_arm = FilterArm(estimator, seed=config.seed)
+    else:
+        path = resolve_model(config.model, setting.name)
+        predictor, meta = load_model(
+            path, setting.name, allow_mismatch=config.allow_mismatch, n_links=setting.n_links
+        )
+    pushes = setting.env_config().pushes if config.pushes is None else config.pushes
     robot = make_robot(
         config.robot, setting, config.episodes_file, config.seed, config.masses, config.lab,
-        config.allow_out_of_range,
+        config.allow_out_of_range, pushes * config.segments,
     )  # fmt: skip
     if robot.n_links != setting.n_links:
         robot.close()
@@ -120,7 +134,6 @@ def run_session(config: SessionConfig, say=print) -> list[dict]:
             f"the robot's chain has {robot.n_links} links, setting {setting.name!r} has "
             f"{setting.n_links}"
         )
-    pushes = setting.env_config().pushes if config.pushes is None else config.pushes
     if config.robot == "replay":
         try:
             _check_replay(robot.recording, setting, config)
@@ -138,6 +151,13 @@ def run_session(config: SessionConfig, say=print) -> list[dict]:
         ]
         which = "" if config.pushes is None else f", the first {config.pushes} of each"
         say(f"Replaying {count} recorded episode(s) with their recorded pushes{which}.")
+    elif filter_arm is not None:
+        # Its candidates are compared as this robot makes them (a stationary one's governor).
+        filter_arm.governor = getattr(robot, "governor", None)
+        policy, count = filter_arm, config.count or 1
+        episode_pushes = [pushes] * count
+        which = "information-seeking" if filter_arm.seeking is not None else "random"
+        say(f"Pushes chosen by the particle filter ({which}); its estimate keeps every push.")
     else:
         policy, count = model_policy(meta, path), config.count or 1
         episode_pushes = [pushes] * count
@@ -150,7 +170,7 @@ def run_session(config: SessionConfig, say=print) -> list[dict]:
                 robot, predictor, policy, episode_pushes[i], config.segments, print_push,
                 seed=config.seed + i,
             )  # fmt: skip
-            if len(episode.run_estimates) > 1:
+            if len(episode.run_estimates) > 1 and filter_arm is None:
                 mean = np.mean(episode.run_estimates, axis=0)
                 say(f"  estimate {fmt(mean)}, averaged over {len(episode.run_estimates)} runs")
             truth = getattr(robot, "truth", {})
@@ -159,6 +179,8 @@ def run_session(config: SessionConfig, say=print) -> list[dict]:
             recorded.append(episode.recorded(id="", masses=truth.get("masses"), label=config.label))
     finally:
         robot.close()
+        if filter_arm is not None:
+            filter_arm.close()
     if config.record:
         robot_name = f"masspush simulation ({config.robot})"
         written, total = _record(config.record, existing, setting, robot_name, recorded)

@@ -22,7 +22,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from tqdm import tqdm
 
+from masspush.bayes.estimator import BAYES_MODELS
 from masspush.cluster.pool import Workers, check_address, gather, is_pool, open_pool
+from masspush.real.filter_arm import FilterArm
 from masspush.real.finetune import (
     FEATURE_KINDS,
     PAPER_CLASSES,
@@ -71,6 +73,9 @@ class Sim2RealConfig:
     """Each episode runs the policy this many times in a row on the same chain, each run the
     setting's pushes (`masspush.real.robot.run_segments`); the classifier reads the runs as
     `classifier.runs` says. 1: the paper's protocol."""
+    density: str | None = None
+    """The push density (`masspush train-density`) a particle-filter arm (model bayes or
+    bayes-random) weighs pushes with; default: the setting's shipped one."""
     classifier: ClassifierConfig = field(default_factory=ClassifierConfig)
     models: dict[str, str] = field(default_factory=lambda: dict(ARMS))
     """Each arm's model (shipped name or path): its policy pushes, its predictor's
@@ -92,6 +97,15 @@ class Sim2RealConfig:
             raise ValueError(f"segments must be >= 1, got {self.segments}")
         if self.governor_fit is not None and not Path(self.governor_fit).is_file():
             raise ValueError(f"governor_fit: no such recording {self.governor_fit}")
+        if self.density is not None:
+            if not any(m in BAYES_MODELS for m in self.models.values()):
+                raise ValueError("density is the particle filter's; no arm's model is bayes")
+            from masspush.learn.push_density import density_for
+
+            try:  # a bad file is refused before any episode
+                density_for(self.density, get_setting(self.setting).env_config())
+            except ValueError as err:
+                raise ValueError(f"density: {err}") from None
         if self.world != "target" and self.lab is not None:
             raise ValueError("a lab is one draw of the target world; it needs world 'target'")
         if self.episodes_per_class < self.classifier.folds:
@@ -222,6 +236,8 @@ def _record_class(shared: tuple, c: int, advance=None) -> tuple[list, dict, dict
     )  # fmt: skip
     if governor is not None:
         robot.governor = governor
+    if isinstance(policy, FilterArm):  # its candidates compared as this robot makes them
+        policy.governor = robot.governor
     episodes, failures = [], {}
     tally = {k: 0 for k in ("attempted", "kept", "lost", "failed")}
     tally["good_pushes"] = 0
@@ -271,6 +287,8 @@ def record_arm(
         if config.segments != 1:
             robot_name += f", {config.segments} runs of the policy per episode"
         robot_name += "" if model == ARMS[arm] else f", {model}"
+        if model in BAYES_MODELS and config.density is not None:
+            robot_name += f" weighing pushes with {Path(config.density).name}"
     if path.exists() and counts.exists():
         kept = json.loads(counts.read_text())
         recording = read_recording(path)
@@ -281,21 +299,46 @@ def record_arm(
             and recording.robot == robot_name
         ):
             return {"episodes": wanted, **kept, "reused": True}
-    predictor, _, policy = model_and_policy(model, config.setting)
-    recording, failures, classes = record_classes(
-        config,
-        predictor,
-        policy,
-        robot_name,
-        f"{config.world} world, {arm} pushes",
-        progress,
-        target,
-        workers,
-    )
+    if model in BAYES_MODELS:
+        predictor = policy = bayes_arm(config, model)
+    else:
+        predictor, _, policy = model_and_policy(model, config.setting)
+    try:
+        recording, failures, classes = record_classes(
+            config,
+            predictor,
+            policy,
+            robot_name,
+            f"{config.world} world, {arm} pushes",
+            progress,
+            target,
+            workers,
+        )
+    finally:
+        if isinstance(policy, FilterArm):
+            policy.close()
     write_recording(path, recording)
     kept = {"failed_pushes": failures, "by_class": classes}
     counts.write_text(json.dumps(kept) + "\n")
     return {"episodes": wanted, **kept, "reused": False}
+
+
+def bayes_arm(config: Sim2RealConfig, model: str) -> FilterArm:
+    """The particle filter `model` (bayes, bayes-random) as an arm, with `config.density`."""
+    from masspush.models import load_estimator
+    from masspush.settings import get_setting
+
+    bayes = None
+    if config.density is not None:
+        bayes = {"likelihood": "learned", "density": config.density}
+    estimator = load_estimator(model, get_setting(config.setting), bayes=bayes, progress=False)
+    return FilterArm(estimator, seed=config.seed)
+
+
+def arm_feature_kinds(model: str) -> tuple[str, ...]:
+    """The kinds of features an arm's model gives the classifier: a particle filter has
+    its estimate but no LSTM."""
+    return ("estimate",) if model in BAYES_MODELS else FEATURE_KINDS
 
 
 def score_arm(config: Sim2RealConfig, arm: str, path: Path) -> dict[str, Any]:
@@ -309,46 +352,76 @@ def score_arm(config: Sim2RealConfig, arm: str, path: Path) -> dict[str, Any]:
 
     recording = read_recording(path)
     model = config.models[arm]
-    predictor, _ = load_model(resolve_model(model, config.setting), config.setting)
     episodes = recording.to_episodes()
     labels, classes = labelled(recording)
+    kinds = arm_feature_kinds(model)
     scores: dict[str, Any] = {
         "model": model,
         "classes": classes,
         "ids": [e["id"] for e in recording.episodes],
         "labels": labels.tolist(),
+        "kinds": list(kinds),
     }
-    segment = 0 if config.segments == 1 else get_setting(config.setting).env_config().pushes
+    pushes = get_setting(config.setting).env_config().pushes
+    segment = 0 if config.segments == 1 else pushes
 
-    def score(episodes, kind: str) -> dict[str, Any]:
-        cfg = replace(config.classifier, features=kind, segment=segment)
-        features, owner = classifier_inputs(predictor, episodes, cfg)
-        return cross_validate(features, labels, len(classes), cfg, owner)
+    if model in BAYES_MODELS:
+        # The filter's own estimates as it ran: its posterior after the first p pushes
+        # (an episode lost earlier classified from those it has).
+        recorded = [_recorded_estimates(e, path) for e in recording.episodes]
 
-    for kind in FEATURE_KINDS:
-        scores[kind] = score(episodes, kind)
+        def features(p: int | None, kind: str) -> tuple[np.ndarray, None]:
+            at = [len(r) if p is None else min(p, len(r)) for r in recorded]
+            return np.log([r[k - 1] for r, k in zip(recorded, at, strict=True)]), None
+
+        estimate = np.array([r[-1] for r in recorded])
+        cfg = config.classifier
+    else:
+        predictor, _ = load_model(resolve_model(model, config.setting), config.setting)
+        cfg = replace(config.classifier, segment=segment)
+
+        def features(p: int | None, kind: str) -> tuple[np.ndarray, np.ndarray]:
+            shown = episodes if p is None else first_pushes(episodes, p)
+            return classifier_inputs(predictor, shown, replace(cfg, features=kind))
+
+        # Without any fine-tuning: how far the simulation-trained estimate is from the truth.
+        estimate = np.exp(predictor_features(predictor, episodes, "estimate", segment))
+
+    def score(p: int | None, kind: str) -> dict[str, Any]:
+        rows, owner = features(p, kind)
+        return cross_validate(rows, labels, len(classes), replace(cfg, features=kind), owner)
+
+    for kind in kinds:
+        scores[kind] = score(None, kind)
     # The control: the start pose alone. Above chance only if which episodes were kept
     # depends on the class.
     scores["start_pose_control"] = start_pose_control(
         episodes, labels, len(classes), config.classifier
     )
-    # Without any fine-tuning: how far the simulation-trained estimate is from the truth.
-    estimate = np.exp(predictor_features(predictor, episodes, "estimate", segment))
     scores["percentage_error"] = percentage_error(estimate, episodes.mass_distribution)
     if config.segments > 1:
         # What a lab that stopped after fewer runs would have got, from the same episodes
         # (all runs were scored above).
         scores["by_runs"] = [
-            {"runs": runs, "pushes": runs * segment}
+            {"runs": runs, "pushes": runs * pushes}
             | {
                 kind: scores[kind]["accuracy"]
                 if runs == config.segments
-                else score(first_pushes(episodes, runs * segment), kind)["accuracy"]
-                for kind in FEATURE_KINDS
+                else score(runs * pushes, kind)["accuracy"]
+                for kind in kinds
             }
             for runs in run_counts(config.segments)
         ]
     return scores
+
+
+def _recorded_estimates(episode: dict[str, Any], path: Path) -> np.ndarray:
+    if "estimates" not in episode:
+        raise ValueError(
+            f"{path}: episode {episode['id']} has no estimates; a particle-filter arm is "
+            "scored on the estimates it recorded (delete the file to record it again)"
+        )
+    return np.asarray(episode["estimates"], float)
 
 
 def run_counts(segments: int) -> list[int]:
@@ -369,7 +442,7 @@ def run_sim2real(
         path = out / f"{arm}.jsonl"
         collected = record_arm(config, arm, path, progress, workers=workers)
         scores = score_arm(config, arm, path)
-        for kind in FEATURE_KINDS:
+        for kind in scores["kinds"]:
             # Every attempted episode counts: one with no good push is a wrong answer.
             right = np.trace(np.array(scores[kind]["confusion"]))
             scores[kind]["accuracy_attempted"] = float(right / collected["episodes"])
@@ -385,6 +458,7 @@ def run_sim2real(
             np.array(random[kind]["predicted"])[at["random"]],
         )
         for kind in FEATURE_KINDS
+        if kind in random["kinds"] and kind in learned["kinds"]
     }
     (out / "summary.json").write_text(json.dumps(results, indent=2) + "\n")
     (out / "summary.md").write_text(summary_markdown(results))
@@ -426,6 +500,8 @@ def plot_accuracy_by_pushes(runs: dict[str, dict[str, Any]], path: str | Path) -
     for ax, kind in zip(axes, FEATURE_KINDS, strict=True):
         for arm, colour in zip(ARMS, ("tab:grey", "tab:blue"), strict=True):
             curves = [r["arms"][arm]["by_runs"] for r in runs.values()]
+            if any(kind not in c[0] for c in curves):
+                continue  # a particle filter has no LSTM features
             pushes = [step["pushes"] for step in curves[0]]
             if any([step["pushes"] for step in c] != pushes for c in curves):
                 raise ValueError("the results were not run with the same segments and setting")
@@ -463,10 +539,14 @@ def summary_markdown(results: dict[str, Any]) -> str:
         "| failed pushes |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
+
+    def percent(r: dict[str, Any], kind: str, key: str = "accuracy") -> str:
+        return f"{100 * r[kind][key]:.1f} %" if kind in r else "-"
+
     for arm, r in results["arms"].items():
         lines.append(
-            f"| {arm} | {r['model']} | {100 * r['estimate']['accuracy']:.1f} % "
-            f"| {100 * r['lstm']['accuracy']:.1f} % | {PAPER_ACCURACY[arm]:.1f} % "
+            f"| {arm} | {r['model']} | {percent(r, 'estimate')} "
+            f"| {percent(r, 'lstm')} | {PAPER_ACCURACY[arm]:.1f} % "
             f"| {100 * r['estimate']['chance']:.0f} % "
             f"| {100 * r['start_pose_control']['accuracy']:.1f} % | {r['percentage_error']:.2f} "
             f"| {sum(r.get('failed_pushes', {}).values())} |"
@@ -486,8 +566,8 @@ def summary_markdown(results: dict[str, Any]) -> str:
         if "accuracy_attempted" in r["estimate"]:
             lines.append(
                 f"| {arm} | all, counting an episode without a good push as wrong | | | | "
-                f"| accuracy {100 * r['estimate']['accuracy_attempted']:.1f} % (estimate), "
-                f"{100 * r['lstm']['accuracy_attempted']:.1f} % (LSTM) |"
+                f"| accuracy {percent(r, 'estimate', 'accuracy_attempted')} (estimate), "
+                f"{percent(r, 'lstm', 'accuracy_attempted')} (LSTM) |"
             )
     if config["segments"] > 1:
         reading = {"each": "each run classified on its own, an episode's runs' log-probabilities "
@@ -500,7 +580,8 @@ def summary_markdown(results: dict[str, Any]) -> str:
                   f"random pushes'; exact McNemar p = {p['p_value']:.2g}."]  # fmt: skip
     by_runs = {arm: r["by_runs"] for arm, r in results["arms"].items() if "by_runs" in r}
     if by_runs:
-        columns = [(arm, kind) for arm in by_runs for kind in FEATURE_KINDS]
+        columns = [(arm, kind) for arm in by_runs for kind in FEATURE_KINDS
+                   if kind in by_runs[arm][0]]  # fmt: skip
         steps = next(iter(by_runs.values()))
         lines += ["", "Accuracy had each episode stopped after fewer runs of the policy:", "",
                   "| pushes per episode | "
@@ -514,7 +595,7 @@ def summary_markdown(results: dict[str, Any]) -> str:
             )
     for arm, r in results["arms"].items():
         classes = r["classes"]
-        for kind in FEATURE_KINDS:
+        for kind in r.get("kinds", FEATURE_KINDS):
             lines += ["", f"Confusion, {arm} policy, {FEATURE_NAMES[kind]} (rows: truth, "
                       "columns: predicted; masses in kg):", "",
                       "| truth \\ predicted | " + " | ".join(classes) + " |",
