@@ -147,3 +147,13 @@ def test_train_builds_tp_plus_fine_tuning_from_the_final_options(capsys):
     assert recipe("--final-members", "3").final_members == 3
     assert main(["train", "--setting", "2link-1-10", "--final-members", "0"]) == 2
     assert "final_members must be in 1..16, got 0" in capsys.readouterr().err
+
+
+def test_sim2real_runs_the_particle_filter_arm_with_a_density(density_file, tmp_path, capsys):
+    out = tmp_path / "s2r"
+    args = ["sim2real", "--setting", "2link-1-10", "--world", "training", "--learned-model",
+            "bayes", "--density", str(density_file), "--episodes-per-class", "2",
+            "--folds", "2", "--out", str(out)]  # fmt: skip
+    assert main(args) == 0
+    assert "| learned | bayes |" in capsys.readouterr().out
+    assert "weighing pushes with density.pt" in (out / "learned.jsonl").read_text()

@@ -57,7 +57,9 @@ def _sim2real(args: argparse.Namespace) -> int:
 
     classifier = build(ClassifierConfig, args, prefix="classifier_")
     job = build(Sim2RealJob, args)
-    print(sim2real(job, build(Sim2RealConfig, args, classifier=classifier)), end="")
+    models = {"random": job.random_model, "learned": job.learned_model}
+    config = build(Sim2RealConfig, args, classifier=classifier, models=models)
+    print(sim2real(job, config), end="")
     print(f"recordings and summary in {job.out}")
     return 0
 
