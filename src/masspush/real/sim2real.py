@@ -507,7 +507,8 @@ def plot_accuracy_by_pushes(runs: dict[str, dict[str, Any]], path: str | Path) -
                 raise ValueError("the results were not run with the same segments and setting")
             acc = 100 * np.array([[step[kind] for step in c] for c in curves])
             for name, row in zip(runs, acc, strict=True):
-                label = f"{arm} {name}".strip() if single else None
+                model = runs[name]["arms"][arm].get("model", ARMS[arm])
+                label = f"{arm} ({model}) {name}".strip() if single else None
                 ax.plot(pushes, row, color=colour, lw=2 if single else 1, alpha=0.8,
                         marker="o", ms=3, label=label)  # fmt: skip
             if not single:
@@ -522,7 +523,12 @@ def plot_accuracy_by_pushes(runs: dict[str, dict[str, Any]], path: str | Path) -
         ax.set_title(FEATURE_NAMES[kind])
         ax.set_ylim(0, 100)
     axes[0].set_ylabel("classifier accuracy, % (chance 20 %)")
-    axes[-1].legend(fontsize=8, loc="lower right")
+    # Every line of any panel once (an arm without LSTM features is in the first only).
+    shown: dict[str, Any] = {}
+    for ax in axes:
+        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            shown.setdefault(label, handle)
+    axes[-1].legend(list(shown.values()), list(shown), fontsize=8, loc="lower right")
     fig.tight_layout()
     path = Path(path)
     fig.savefig(path, dpi=120)
