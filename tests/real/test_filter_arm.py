@@ -63,3 +63,12 @@ def test_bayes_random_pushes_at_random_and_the_governor_reaches_the_candidates(d
     assert seeking.seeking.governor is abs
     with pytest.raises(ValueError, match="one episode at a time"):
         seeking.reset(np.array([1, 2], np.uint64))
+
+
+def test_a_filter_arm_loads_with_the_density_it_is_given(density_file):
+    loaded = FilterArm.load("bayes", SETTING, seed=2, density=str(density_file))
+    assert loaded.filter.density is not None and loaded.seeking is not None
+    assert loaded.filter.config.likelihood == "learned"
+    with pytest.raises(ValueError, match="n_links 2, not 3"):
+        FilterArm.load("bayes", get_setting("3link-1-10"), density=str(density_file))
+    loaded.close()

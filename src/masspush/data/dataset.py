@@ -113,6 +113,30 @@ class Manifest:
         return d
 
 
+def new_manifest(
+    setting: Setting, env_config: EnvConfig, pusher: str, policy: str, base_seed: int,
+    episodes: int, shard_size: int, worlds: str = "setting",
+) -> Manifest:  # fmt: skip
+    """The manifest of training episodes collected now with this code: of `setting` under
+    `env_config`'s noise and pushes, pushed by `pusher` and the policy named `policy`."""
+    return Manifest(
+        schema_version=SCHEMA_VERSION,
+        setting=setting.as_dict(),
+        pusher=pusher,
+        policy=policy,
+        obs_noise=env_config.obs_noise,
+        action_noise=env_config.action_noise,
+        pushes=env_config.pushes,
+        base_seed=base_seed,
+        purpose=TRAIN,
+        episodes=episodes,
+        shard_size=shard_size,
+        code_version=code_version(),
+        created=time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        worlds=worlds,
+    )
+
+
 def write_manifest(root: str | os.PathLike, manifest: Manifest) -> None:
     """Write `manifest` as `root`'s (atomically, as the shards)."""
     _write_json(Path(root) / MANIFEST, asdict(manifest))
@@ -236,21 +260,8 @@ def collect(
     root = Path(out)
     root.mkdir(parents=True, exist_ok=True)
     env_config = env_config or setting.env_config(pusher)
-    manifest = Manifest(
-        schema_version=SCHEMA_VERSION,
-        setting=setting.as_dict(),
-        pusher=pusher,
-        policy=policy.name,
-        obs_noise=env_config.obs_noise,
-        action_noise=env_config.action_noise,
-        pushes=env_config.pushes,
-        base_seed=base_seed,
-        purpose=TRAIN,
-        episodes=episodes,
-        shard_size=shard_size,
-        code_version=code_version(),
-        created=time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-    )
+    manifest = new_manifest(setting, env_config, pusher, policy.name, base_seed, episodes,
+                            shard_size)  # fmt: skip
     old = read_manifest(root) if (root / MANIFEST).exists() else None
     if old is not None:
         if old.identity() != manifest.identity():

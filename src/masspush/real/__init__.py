@@ -26,7 +26,7 @@ EXPORTS = {
     "target_world": ("TRAINING_KNOBS", "Lab", "TargetWorld", "TargetWorldRobot", "WorldRanges",
                      "scaled_world"),
     "sim2real": ("ARMS", "FEATURE_KINDS", "FEATURE_NAMES", "Sim2RealConfig", "Sim2RealJob",
-                 "arm_feature_kinds", "bayes_arm", "class_robot", "paired_test",
+                 "arm_feature_kinds", "class_robot", "paired_test",
                  "plot_accuracy_by_pushes", "record_arm", "record_classes", "run_sim2real",
                  "score_arm", "sim2real"),
     "randomise": ("RandomiseConfig", "RandomiseRun", "randomise", "run_randomised"),

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import json
 import os
-import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field, replace
 from functools import partial
@@ -35,8 +34,8 @@ import numpy as np
 from tqdm import tqdm
 
 from masspush.config import check_int
-from masspush.data.dataset import Manifest, write_manifest
-from masspush.data.rollout import TRAIN, Episodes, empty_episodes, failure_code
+from masspush.data.dataset import Manifest, new_manifest, write_manifest
+from masspush.data.rollout import Episodes, empty_episodes, failure_code
 from masspush.real.robot_env import RobotEnv
 from masspush.real.target_world import TargetWorld, TargetWorldRobot, WorldRanges
 
@@ -223,21 +222,14 @@ def collect_randomised(
 
 
 def _manifest(config: RandomiseConfig, model_file: str | os.PathLike) -> Manifest:
-    from masspush.data.dataset import SCHEMA_VERSION, code_version
     from masspush.models import model_and_policy
     from masspush.settings import get_setting
 
     setting = get_setting(config.setting)
     env_config = setting.env_config()
     policy = model_and_policy(model_file, setting.name)[2]
-    return Manifest(
-        schema_version=SCHEMA_VERSION, setting=setting.as_dict(), pusher=env_config.pusher,
-        policy=policy.name, obs_noise=env_config.obs_noise,
-        action_noise=env_config.action_noise, pushes=env_config.pushes,
-        base_seed=config.base_seed, purpose=TRAIN, episodes=config.episodes,
-        shard_size=config.shard_size, code_version=code_version(),
-        created=time.strftime("%Y-%m-%dT%H:%M:%S%z"), worlds=config.world,
-    )  # fmt: skip
+    return new_manifest(setting, env_config, env_config.pusher, policy.name, config.base_seed,
+                        config.episodes, config.shard_size, worlds=config.world)  # fmt: skip
 
 
 def train_randomised_policy(

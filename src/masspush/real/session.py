@@ -13,7 +13,7 @@ from masspush.config import check_input, check_int, check_match, check_output
 from masspush.data.recording import Recording, read_recording, write_recording
 from masspush.learn.policy import model_policy
 from masspush.learn.predictor import load_model
-from masspush.models import load_estimator, resolve_model
+from masspush.models import resolve_model
 from masspush.real.backends import BACKENDS, RecordedPolicy, make_robot
 from masspush.real.filter_arm import FilterArm
 from masspush.real.robot import check_geometry, fmt, print_push, run_segments
@@ -116,8 +116,7 @@ def run_session(config: SessionConfig, say=print) -> list[dict]:
     existing = _recording_to_extend(config.record, setting)
     filter_arm = None
     if config.model in BAYES_MODELS:
-        estimator = load_estimator(config.model, setting, progress=False)
-        predictor = filter_arm = FilterArm(estimator, seed=config.seed)
+        predictor = filter_arm = FilterArm.load(config.model, setting, config.seed)
     else:
         path = resolve_model(config.model, setting.name)
         predictor, meta = load_model(

@@ -272,6 +272,7 @@ def record_arm(
     recording and decides whether a kept one is reused, then tells the worlds apart."""
     from masspush.data.recording import read_recording, write_recording
     from masspush.models import model_and_policy
+    from masspush.settings import get_setting
 
     wanted = config.episodes_per_class * len(PAPER_CLASSES)
     counts = path.with_suffix(".failures.json")
@@ -300,7 +301,8 @@ def record_arm(
         ):
             return {"episodes": wanted, **kept, "reused": True}
     if model in BAYES_MODELS:
-        predictor = policy = bayes_arm(config, model)
+        setting = get_setting(config.setting)
+        predictor = policy = FilterArm.load(model, setting, config.seed, config.density)
     else:
         predictor, _, policy = model_and_policy(model, config.setting)
     try:
@@ -321,18 +323,6 @@ def record_arm(
     kept = {"failed_pushes": failures, "by_class": classes}
     counts.write_text(json.dumps(kept) + "\n")
     return {"episodes": wanted, **kept, "reused": False}
-
-
-def bayes_arm(config: Sim2RealConfig, model: str) -> FilterArm:
-    """The particle filter `model` (bayes, bayes-random) as an arm, with `config.density`."""
-    from masspush.models import load_estimator
-    from masspush.settings import get_setting
-
-    bayes = None
-    if config.density is not None:
-        bayes = {"likelihood": "learned", "density": config.density}
-    estimator = load_estimator(model, get_setting(config.setting), bayes=bayes, progress=False)
-    return FilterArm(estimator, seed=config.seed)
 
 
 def arm_feature_kinds(model: str) -> tuple[str, ...]:
