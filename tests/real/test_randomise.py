@@ -104,6 +104,9 @@ def test_randomised_episodes_are_a_dataset_a_density_trains_on(tmp_path):
     mixed = DensityConfig(data=(str(tmp_path / "s"), str(tmp_path / "r")), out=str(out), **small)
     with pytest.raises(ValueError, match="has worlds 'randomised'"):
         train_push_density(mixed, progress=False)
+    # A collected dataset is never overwritten by randomised episodes.
+    with pytest.raises(ValueError, match="holds a dataset of `masspush collect`"):
+        collect_randomised(TINY, tmp_path / "s", workers=1, progress=False)
 
 
 def test_the_fine_tuned_predictor_keeps_its_policy_and_names_its_worlds(tmp_path):

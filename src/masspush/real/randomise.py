@@ -34,7 +34,7 @@ import numpy as np
 from tqdm import tqdm
 
 from masspush.config import check_int
-from masspush.data.dataset import Manifest, new_manifest, write_manifest
+from masspush.data.dataset import MANIFEST, Manifest, new_manifest, write_manifest
 from masspush.data.rollout import Episodes, empty_episodes, failure_code
 from masspush.real.robot_env import RobotEnv
 from masspush.real.target_world import TargetWorld, TargetWorldRobot, WorldRanges
@@ -194,6 +194,8 @@ def collect_randomised(
     model_file = model_file or resolve_model(config.model, config.setting)
     stamp = root / "randomise.json"
     identity = json.loads(json.dumps(config.identity()))  # tuples as lists, as on disk
+    if not stamp.exists() and (root / MANIFEST).exists():
+        raise ValueError(f"{root} holds a dataset of `masspush collect`; use another --out")
     if stamp.exists():
         old = json.loads(stamp.read_text())
         if old != identity:
