@@ -26,6 +26,7 @@ from masspush.bayes.filter import (
     config_difference,
     default_config,
     filter_for,
+    friction_prior,
     simplex_median,
 )
 from masspush.config import EnvConfig
@@ -482,3 +483,26 @@ def test_the_learned_likelihood_is_chosen_by_name():
     with pytest.raises(ValueError, match="needs a push density"):
         ParticleFilter(EnvConfig(physics=SETTING.physics(), pusher="stiff"),
                        BayesConfig(likelihood="learned"))  # fmt: skip
+
+
+def test_a_density_s_filter_guesses_only_the_frictions_its_data_held():
+    env = EnvConfig(physics=SETTING.physics(), pusher="stiff")
+    config = BayesConfig(likelihood="learned", density="any", particles=500, move_sweeps=1,
+                         lookahead_particles=16, candidates=2)  # fmt: skip
+    lo, hi = SETTING.physics().friction_range
+    assert friction_prior(None, (lo, hi)) == (lo, hi)
+    assert friction_prior(ShareDensity(), (lo, hi)) == (lo, hi)  # nothing recorded: all
+    one_lab = ShareDensity()
+    one_lab.meta = {"friction_seen": [0.7, 0.7]}
+    assert friction_prior(one_lab, (0.5, 1.0)) == (0.7, 0.7)
+    assert friction_prior(one_lab, (0.8, 1.0)) == (0.7, 0.7)  # no overlap: the density's
+    one_lab.meta = {"friction_seen": [0.6, 2.0]}
+    assert friction_prior(one_lab, (0.5, 1.0)) == (0.6, 1.0)
+    one_lab.meta = {"friction_seen": [0.7, 0.7]}
+    filt = ParticleFilter(env, config, seed=0, density=one_lab)
+    filt.reset(np.array([0.12, 0.12]), episode=1)
+    start = np.array([0.0, 0.0, 0.4, 0.1])
+    observed = one_lab._mean(start, np.array([[0.3, 0.7]]))[0]
+    for _ in range(3):  # resampled and moved: still the one friction
+        filt.update(start, np.array([0.5, 0.5]), observed)
+        np.testing.assert_allclose(filt.friction, 0.7)

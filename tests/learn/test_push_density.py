@@ -4,7 +4,7 @@ import torch
 import tqdm
 
 from masspush.config import EnvConfig
-from masspush.data.dataset import CollectConfig, collect_dataset
+from masspush.data.dataset import CollectConfig, collect_dataset, load_dataset
 from masspush.learn.push_density import (
     DensityConfig,
     PushDensity,
@@ -78,6 +78,8 @@ def test_training_writes_a_density_that_resumes_to_the_same_weights(dataset, tmp
     net = load_push_density(whole.out)
     assert net.meta["n_links"] == 2 and net.meta["pusher"] == "stiff"
     assert net.meta["mass_range"] == list(SETTING.physics().mass_range)
+    _, episodes = load_dataset(dataset)  # the frictions it saw, for the filter's prior
+    assert net.meta["friction_seen"] == [episodes.friction.min(), episodes.friction.max()]
 
     stopped = DensityConfig(**{**whole.__dict__, "out": str(tmp_path / "b.pt")})
     calls = {"n": 0}

@@ -187,3 +187,20 @@ def test_the_policy_can_be_trained_on_in_randomised_worlds(tmp_path):
     assert not np.array_equal(kept.actions, trained.actions)
     with pytest.raises(ValueError, match="policy_steps"):
         RandomiseConfig(policy_steps=-1)
+
+
+def test_episodes_can_all_come_from_one_lab_of_the_target_world():
+    from masspush.models import resolve_model
+    from masspush.real.target_world import Lab
+
+    model = resolve_model("rp", SETTING)
+    one = run_randomised(SETTING, model, TargetWorld(), np.array([0, 1, 2]), 11, lab=5)
+    many = run_randomised(SETTING, model, TargetWorld(), np.array([0, 1, 2]), 11)
+    robot = TargetWorldRobot(SETTING, seed=0, lab=5)
+    lab = Lab(5, robot.world, robot.physics)
+    # The lab's constants in every episode (its friction, its chain); a new lab otherwise.
+    np.testing.assert_allclose(one.friction, lab.friction, rtol=1e-6)
+    np.testing.assert_allclose(one.lengths, np.tile(lab.told_lengths, (3, 1)), rtol=1e-6)
+    assert len(set(np.round(many.friction, 6))) == 3
+    with pytest.raises(ValueError, match="pass world=target"):
+        RandomiseConfig(lab=5)

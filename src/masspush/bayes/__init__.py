@@ -11,7 +11,8 @@ from masspush._exports import lazy, names
 EXPORTS = {
     "filter": ("ARM_CONFIG", "ARM_MAX_PUSH", "ARM_SURROGATE", "BayesConfig", "InfoSeekingPolicy",
                "ParticleFilter", "Posterior", "UnexplainedObservationWarning", "bayes_overrides",
-               "config_difference", "default_config", "failure_floor", "filter_for"),
+               "config_difference", "default_config", "failure_floor", "filter_for",
+               "friction_prior"),
     "estimator": ("BAYES_MODELS", "BayesEstimator", "run_bayes_episode"),
     "arm_scenes": ("ArmScene", "ArmSimulator"),
     "hypotheses": ("HypothesisFilter", "friction_grid", "hypothesis_filter"),

@@ -44,7 +44,7 @@ from __future__ import annotations
 import warnings
 from dataclasses import asdict, dataclass, replace
 from statistics import NormalDist
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -234,6 +234,8 @@ class ParticleFilter:
             self.density = density
         elif pusher_kind(env_config.pusher).arm:
             self.arm = ArmSimulator(self.physics, env_config.pusher, self.config.nthread)
+        self.friction_range = friction_prior(self.density, self.physics.friction_range)
+        """The prior's frictions: the setting's, within those a learned likelihood knows."""
 
     def settings(self) -> dict:
         """The configuration as run: `BayesConfig` with its defaults resolved for this chain,
@@ -266,7 +268,7 @@ class ParticleFilter:
         n, m = self.physics.n_links, self.config.particles
         self.lengths = tuple(float(v) for v in lengths)
         self.masses = self.rng.uniform(*self.physics.mass_range, size=(m, n))
-        self.friction = self.rng.uniform(*self.physics.friction_range, size=m)
+        self.friction = self.rng.uniform(*self.friction_range, size=m)
         self.log_w = np.zeros(m)
         self.warnings = 0
         self.past_log_lik = np.zeros(m)
@@ -480,7 +482,7 @@ class ParticleFilter:
     def _log_box(self) -> tuple[np.ndarray, np.ndarray]:
         """The prior's box in log-parameter space: lows, highs."""
         n, (lo, hi), (flo, fhi) = (self.physics.n_links, self.physics.mass_range,
-                                   self.physics.friction_range)  # fmt: skip
+                                   self.friction_range)  # fmt: skip
         return np.log([lo] * n + [flo]), np.log([hi] * n + [fhi])
 
     def _set(self, theta: np.ndarray) -> None:
@@ -602,6 +604,18 @@ class InfoSeekingPolicy:
             candidates = np.array([self.governor(a, start, lengths) for a in candidates], float)
         scores = self.filter.expected_variance(start, candidates)
         return candidates[int(np.argmin(scores))]
+
+
+def friction_prior(density: Any, friction_range: tuple[float, float]) -> tuple[float, float]:
+    """The table frictions a filter weighing pushes with `density` may guess: the setting's
+    `friction_range` within those the density's training episodes held (`friction_seen`;
+    a density trained before it was recorded, or none: the whole range). Where the two do
+    not overlap, the density's: it can weigh no other."""
+    seen = None if density is None else getattr(density, "meta", {}).get("friction_seen")
+    if seen is None:
+        return float(friction_range[0]), float(friction_range[1])
+    lo, hi = max(friction_range[0], seen[0]), min(friction_range[1], seen[1])
+    return (float(lo), float(hi)) if lo <= hi else (float(seen[0]), float(seen[1]))
 
 
 def config_difference(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -68,7 +68,7 @@ def _randomise_options(p: argparse.ArgumentParser) -> None:
     from masspush.real.randomise import RandomiseConfig, RandomiseRun
 
     add_fields(p, RandomiseConfig, only=("setting", "model", "episodes", "steps", "base_seed",
-                                         "policy_steps", "policy_envs", "world"),
+                                         "policy_steps", "policy_envs", "world", "lab"),
                rename={"base_seed": "seed", "policy_envs": "envs"})  # fmt: skip
     add_fields(p, RandomiseRun)
 

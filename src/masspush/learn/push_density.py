@@ -371,14 +371,20 @@ def train_push_density(config: DensityConfig, progress: bool = True) -> dict:
     out, ckpt = Path(config.out), Path(f"{config.out}.ckpt")
     out.parent.mkdir(parents=True, exist_ok=True)
     fit, held = ([], []), ([], [])
+    seen = []
     for d in config.data:
         _, episodes = load_dataset(d)
+        seen.append(episodes.friction)
         cut = len(episodes.masses) - max(1, round(config.held_out * len(episodes.masses)))
         for part, rows in ((fit, slice(0, cut)), (held, slice(cut, None))):
             x, y = episode_pushes(episodes, rows, placed)
             part[0].append(x)
             part[1].append(y)
     x_fit, y_fit = np.concatenate(fit[0]), np.concatenate(fit[1])
+    # A mixture density network answers anything for inputs it never saw: the filter keeps
+    # its friction prior to what the data held (one lab's episodes hold one friction).
+    seen = np.concatenate(seen)
+    meta["friction_seen"] = [float(seen.min()), float(seen.max())]
     x_held, y_held = np.concatenate(held[0]), np.concatenate(held[1])
     torch.manual_seed(config.seed)
     net = PushDensity(x_fit.shape[1], y_fit.shape[1], config.components, config.width,

@@ -82,10 +82,17 @@ class RandomiseConfig:
     world: str = "randomised"
     """randomised: worlds drawn per episode; target: the sim-to-real target world itself, an
     upper bound (what many labelled episodes of the tested setup could give), not to ship."""
+    lab: int | None = None
+    """With world=target: every episode in this one lab (`masspush sim2real --lab`), whose
+    constants stay the same from one episode to the next; None: a new lab per episode. An
+    upper bound for that lab: what a simulator that knew it exactly could learn."""
 
     def __post_init__(self) -> None:
         if self.world not in WORLDS:
             raise ValueError(f"world must be one of {list(WORLDS)}, got {self.world!r}")
+        if self.lab is not None and self.world != "target":
+            raise ValueError(f"lab is one lab of the target world: pass world=target, not "
+                             f"{self.world!r}")  # fmt: skip
         if self.episodes < 2 or self.shard_size < 1 or self.steps < 1:
             raise ValueError(
                 f"episodes must be >= 2, shard_size and steps >= 1; got {self.episodes}, "
@@ -123,11 +130,12 @@ class RandomiseConfig:
 
 def run_randomised(
     setting: str, model_file: str | os.PathLike, world: WorldRanges | TargetWorld,
-    indices: np.ndarray, base_seed: int, policy=None,
+    indices: np.ndarray, base_seed: int, policy=None, lab: int | None = None,
 ) -> Episodes:  # fmt: skip
     """Episodes `indices` of the model's policy (or of `policy`, a `masspush.data.rollout.Policy`)
-    in worlds drawn from `world` (or in that one `TargetWorld`), as the robot saw them
-    (observations with the world's noise and bias, the told link lengths)."""
+    in worlds drawn from `world` (or in that one `TargetWorld`, in its lab `lab` if given), as
+    the robot saw them (observations with the world's noise and bias, the told link
+    lengths)."""
     from masspush.models import model_and_policy
     from masspush.real.robot import run_estimation
     from masspush.settings import get_setting
@@ -136,7 +144,7 @@ def run_randomised(
     predictor, _, model_policy = model_and_policy(model_file, setting_.name)
     policy = policy or model_policy
     pushes = setting_.env_config().pushes
-    robot = TargetWorldRobot(setting_, world=world)
+    robot = TargetWorldRobot(setting_, world=world, lab=lab)
     rows = []
     for i in indices:
         robot.seed = base_seed + SEED_STRIDE * int(i)
@@ -175,7 +183,7 @@ def _shard_job(args) -> tuple[int, int]:
     lo = j * config.shard_size
     indices = np.arange(lo, lo + config.shard_len(j))
     episodes = run_randomised(config.setting, model_file, config.worlds, indices,
-                              config.base_seed)  # fmt: skip
+                              config.base_seed, lab=config.lab)  # fmt: skip
     write_shard(shard_path(root, j), episodes)
     return j, len(indices)
 
@@ -270,6 +278,7 @@ def train_randomised_policy(
             config.worlds,
             setting.env_config().pusher,
             setting.env_config().pushes,
+            config.lab,
         ),
     )
     pushing = root / "pushing-model.pt"
@@ -279,10 +288,12 @@ def train_randomised_policy(
     return pushing
 
 
-def world_env(setting: str, world: TargetWorld | WorldRanges, pusher: str, pushes: int) -> RobotEnv:
-    """A policy-training environment whose chains are pushed in `world` (a
-    `masspush.learn.policy.ChainEnvFactory` once its arguments are bound)."""
-    return RobotEnv(TargetWorldRobot(setting, world=world, pusher=pusher), pushes)
+def world_env(
+    setting: str, world: TargetWorld | WorldRanges, pusher: str, pushes: int, lab: int | None = None
+) -> RobotEnv:
+    """A policy-training environment whose chains are pushed in `world` (in its lab `lab` if
+    given; a `masspush.learn.policy.ChainEnvFactory` once its arguments are bound)."""
+    return RobotEnv(TargetWorldRobot(setting, world=world, pusher=pusher, lab=lab), pushes)
 
 
 @dataclass(frozen=True)
