@@ -90,6 +90,9 @@ def test_randomise_passes_the_policy_training_on(tmp_path, monkeypatch, capsys):
     main(["randomise", "--setting", "2link-1-10", "--world", "target"])
     assert seen["config"].world == "target"
     assert seen["out"] == "runs/randomise-2link-1-10-target"
+    main(["randomise", "--setting", "2link-1-10", "--world", "target", "--lab", "5"])
+    assert seen["config"].lab == 5
+    assert seen["out"] == "runs/randomise-2link-1-10-target-lab5"
 
 
 @pytest.mark.slow

@@ -90,6 +90,7 @@ class RandomiseConfig:
     def __post_init__(self) -> None:
         if self.world not in WORLDS:
             raise ValueError(f"world must be one of {list(WORLDS)}, got {self.world!r}")
+        check_int("lab", self.lab, low=0, optional=True)
         if self.lab is not None and self.world != "target":
             raise ValueError(f"lab is one lab of the target world: pass world=target, not "
                              f"{self.world!r}")  # fmt: skip
@@ -301,7 +302,8 @@ class RandomiseRun:
     """Where and how `masspush randomise` runs."""
 
     out: str | None = None
-    """Run directory; a rerun resumes it (default: runs/randomise-<setting>[-policy][-target])."""
+    """Run directory; a rerun resumes it (default:
+    runs/randomise-<setting>[-policy][-target][-labL])."""
     workers: int | None = None
     """Processes collecting the episodes (default: one per core)."""
     ship: bool = False
@@ -315,6 +317,7 @@ def randomise_run(config: RandomiseConfig, run: RandomiseRun) -> Path:
     """`randomise` in `run.out`, or in the default directory named for what it does."""
     suffix = "-policy" if config.policy_steps else ""
     suffix += "-target" if config.world == "target" else ""
+    suffix += "" if config.lab is None else f"-lab{config.lab}"
     out = run.out or f"runs/randomise-{config.setting}{suffix}"
     return randomise(config, out, run.workers, ship=run.ship)
 

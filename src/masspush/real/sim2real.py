@@ -24,6 +24,7 @@ from tqdm import tqdm
 
 from masspush.bayes.estimator import BAYES_MODELS
 from masspush.cluster.pool import Workers, check_address, gather, is_pool, open_pool
+from masspush.config import check_int
 from masspush.real.filter_arm import FilterArm
 from masspush.real.finetune import (
     FEATURE_KINDS,
@@ -106,6 +107,7 @@ class Sim2RealConfig:
                 density_for(self.density, get_setting(self.setting).env_config())
             except ValueError as err:
                 raise ValueError(f"density: {err}") from None
+        check_int("lab", self.lab, low=0, optional=True)
         if self.world != "target" and self.lab is not None:
             raise ValueError("a lab is one draw of the target world; it needs world 'target'")
         if self.episodes_per_class < self.classifier.folds:
