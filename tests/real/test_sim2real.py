@@ -321,12 +321,13 @@ def test_the_particle_filter_is_an_arm_scored_on_the_estimates_it_recorded(densi
     from dataclasses import replace
 
     config = replace(CONFIG, world="training", segments=2, density=str(density_file),
-                     models={"random": "rp", "learned": "bayes"})  # fmt: skip
+                     models={"random": "rp", "learned": "bayes"},
+                     bayes={"particles": 512})  # fmt: skip
     results = run_sim2real(config, tmp_path, progress=False)
     recording = read_recording(tmp_path / "learned.jsonl")
     assert recording.robot == (
         "masspush training world, 2 runs of the policy per episode, bayes weighing pushes "
-        "with density.pt"
+        "with density.pt (particles=512)"
     )
     assert all(len(e["estimates"]) == len(e["actions"]) for e in recording.episodes)
     learned = results["arms"]["learned"]
@@ -357,3 +358,10 @@ def test_a_density_is_checked_before_any_episode(density_file, tmp_path):
         Sim2RealConfig(setting="3link-1-10", density=str(density_file), models=bayes)
     with pytest.raises(ValueError, match=r"density: .*no such file"):
         Sim2RealConfig(setting="2link-1-10", density=str(tmp_path / "x.pt"), models=bayes)
+    # ... and so are the filter's own options
+    with pytest.raises(ValueError, match="no arm's model is bayes"):
+        Sim2RealConfig(setting="2link-1-10", bayes={"particles": 64})
+    with pytest.raises(ValueError, match=r"bayes: likelihood_power must be in \(0, 1\]"):
+        Sim2RealConfig(setting="2link-1-10", bayes={"likelihood_power": 2.0}, models=bayes)
+    with pytest.raises(ValueError, match="as density"):
+        Sim2RealConfig(setting="2link-1-10", bayes={"density": "x.pt"}, models=bayes)

@@ -49,16 +49,23 @@ def _sim2real_options(p: argparse.ArgumentParser) -> None:
                                         "density"))  # fmt: skip
     add_fields(p, ClassifierConfig, only=("folds", "runs"), prefix="classifier_")
     add_fields(p, Sim2RealJob)
+    p.add_argument(
+        "--bayes", action="append", metavar="KEY=VALUE", default=None,
+        help="change a BayesConfig field of a particle-filter arm (repeatable), "
+        "e.g. --bayes likelihood_power=0.5",
+    )  # fmt: skip
 
 
 def _sim2real(args: argparse.Namespace) -> int:
+    from masspush.bayes.filter import bayes_overrides
     from masspush.real.finetune import ClassifierConfig
     from masspush.real.sim2real import Sim2RealConfig, Sim2RealJob, sim2real
 
     classifier = build(ClassifierConfig, args, prefix="classifier_")
     job = build(Sim2RealJob, args)
     models = {"random": job.random_model, "learned": job.learned_model}
-    config = build(Sim2RealConfig, args, classifier=classifier, models=models)
+    config = build(Sim2RealConfig, args, classifier=classifier, models=models,
+                   bayes=bayes_overrides(args.bayes))  # fmt: skip
     print(sim2real(job, config), end="")
     print(f"recordings and summary in {job.out}")
     return 0

@@ -31,14 +31,19 @@ class FilterArm:
     """Never start afresh between runs of one episode (`run_segments`)."""
 
     @classmethod
-    def load(cls, model: str, setting, seed: int = 0, density: str | None = None) -> FilterArm:
+    def load(
+        cls, model: str, setting, seed: int = 0, density: str | None = None,
+        overrides: dict | None = None,
+    ) -> FilterArm:  # fmt: skip
         """The filter `model` (bayes, bayes-random) for chains of `setting` (a `Setting`),
         weighing pushes with the push density file `density` (default: the setting's
-        shipped one, `masspush.models.load_estimator`)."""
+        shipped one, `masspush.models.load_estimator`), its `BayesConfig` changed by
+        `overrides`."""
         from masspush.models import load_estimator
 
-        bayes = None if density is None else {"likelihood": "learned", "density": density}
-        return cls(load_estimator(model, setting, bayes=bayes, progress=False), seed)
+        bayes = {} if density is None else {"likelihood": "learned", "density": density}
+        bayes |= overrides or {}
+        return cls(load_estimator(model, setting, bayes=bayes or None, progress=False), seed)
 
     def __init__(self, estimator: BayesEstimator, seed: int = 0, governor=None):
         self.name = estimator.name

@@ -77,6 +77,9 @@ class Sim2RealConfig:
     density: str | None = None
     """The push density (`masspush train-density`) a particle-filter arm (model bayes or
     bayes-random) weighs pushes with; default: the setting's shipped one."""
+    bayes: dict[str, Any] | None = None
+    """`BayesConfig` fields a particle-filter arm runs with instead of its defaults
+    (`masspush sim2real --bayes KEY=VALUE`), e.g. {"likelihood_power": 0.5}."""
     classifier: ClassifierConfig = field(default_factory=ClassifierConfig)
     models: dict[str, str] = field(default_factory=lambda: dict(ARMS))
     """Each arm's model (shipped name or path): its policy pushes, its predictor's
@@ -108,6 +111,17 @@ class Sim2RealConfig:
             except ValueError as err:
                 raise ValueError(f"density: {err}") from None
         check_int("lab", self.lab, low=0, optional=True)
+        if self.bayes:
+            from masspush.bayes.filter import BayesConfig
+
+            if not any(m in BAYES_MODELS for m in self.models.values()):
+                raise ValueError("bayes options are the particle filter's; no arm's model is bayes")
+            if "density" in self.bayes:
+                raise ValueError("bayes: give the push density as density (--density FILE)")
+            try:
+                BayesConfig(**self.bayes)
+            except (TypeError, ValueError) as err:
+                raise ValueError(f"bayes: {err}") from None
         if self.world != "target" and self.lab is not None:
             raise ValueError("a lab is one draw of the target world; it needs world 'target'")
         if self.episodes_per_class < self.classifier.folds:
@@ -292,6 +306,8 @@ def record_arm(
         robot_name += "" if model == ARMS[arm] else f", {model}"
         if model in BAYES_MODELS and config.density is not None:
             robot_name += f" weighing pushes with {Path(config.density).name}"
+        if model in BAYES_MODELS and config.bayes:
+            robot_name += f" ({', '.join(f'{k}={v}' for k, v in sorted(config.bayes.items()))})"
     if path.exists() and counts.exists():
         kept = json.loads(counts.read_text())
         recording = read_recording(path)
@@ -304,7 +320,9 @@ def record_arm(
             return {"episodes": wanted, **kept, "reused": True}
     if model in BAYES_MODELS:
         setting = get_setting(config.setting)
-        predictor = policy = FilterArm.load(model, setting, config.seed, config.density)
+        predictor = policy = FilterArm.load(
+            model, setting, config.seed, config.density, config.bayes
+        )
     else:
         predictor, _, policy = model_and_policy(model, config.setting)
     try:
