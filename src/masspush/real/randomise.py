@@ -84,8 +84,8 @@ class RandomiseConfig:
     upper bound (what many labelled episodes of the tested setup could give), not to ship."""
     lab: int | None = None
     """With world=target: every episode in this one lab (`masspush sim2real --lab`), whose
-    constants stay the same from one episode to the next; None: a new lab per episode. An
-    upper bound for that lab: what a simulator that knew it exactly could learn."""
+    constants stay the same from one episode to the next; None: a new lab per episode. What
+    a simulator that knew that lab exactly could learn (not to ship)."""
 
     def __post_init__(self) -> None:
         if self.world not in WORLDS:
