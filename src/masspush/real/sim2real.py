@@ -101,8 +101,9 @@ class Sim2RealConfig:
             raise ValueError(f"segments must be >= 1, got {self.segments}")
         if self.governor_fit is not None and not Path(self.governor_fit).is_file():
             raise ValueError(f"governor_fit: no such recording {self.governor_fit}")
+        filtered = any(m in BAYES_MODELS for m in self.models.values())
         if self.density is not None:
-            if not any(m in BAYES_MODELS for m in self.models.values()):
+            if not filtered:
                 raise ValueError("density is the particle filter's; no arm's model is bayes")
             from masspush.learn.push_density import density_for
 
@@ -114,7 +115,7 @@ class Sim2RealConfig:
         if self.bayes:
             from masspush.bayes.filter import BayesConfig
 
-            if not any(m in BAYES_MODELS for m in self.models.values()):
+            if not filtered:
                 raise ValueError("bayes options are the particle filter's; no arm's model is bayes")
             if "density" in self.bayes:
                 raise ValueError("bayes: give the push density as density (--density FILE)")
