@@ -7,8 +7,10 @@ one group of its differences put back to the training world's values
 (`target_world_ablation.py`'s groups: `none` the target world as is, `all` every knob put
 back), and once (`told`) in the target world with the filter told the lab's constants that a
 calibration could find: each push's speed gain and contact bias applied to the action it
-weighs, the tracker's bias taken off both rest poses. Same chains and seeds in every row
-(paired); only the learned arm is run.
+weighs, the tracker's bias taken off both rest poses; and (`executed`, `executed-speed`)
+with the filter told each push as the robot executed it, noise included (speed and contact
+point, or the speed alone: what a robot that reports its executed speed could give). Same
+chains and seeds in every row (paired); only the learned arm is run.
 
     python experiments/sim2real/filter_gap_parts.py [--lab 5] [--groups none,all,told,...]
         [--out results/sim2real-filter-gap-parts]
