@@ -47,7 +47,7 @@ def told_predict(lab: Lab):
 
     def predict(self, history):
         gain = np.array([lab.gain, 1.0], np.float32)
-        history.actions[..., :] = history.actions * gain + np.array([0, lab.contact], np.float32)
+        history.actions[...] = history.actions * gain + np.array([0, lab.contact], np.float32)
         history.observations[...] = history.observations - lab.bias.astype(np.float32)
         return original(self, history)
 
@@ -92,7 +92,10 @@ def main() -> None:
     if args.lab < 0:
         parser.error("--lab must be >= 0")
     out = Path(args.out) / str(args.lab)
-    out.mkdir(parents=True, exist_ok=True)
+    try:  # before any episode: a bad --out is said at once, not after the first group
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        parser.error(f"--out: cannot make {out}: {err.strerror}")
     config = Sim2RealConfig(setting=SETTING, lab=args.lab,
                             models={"random": "rp", "learned": "bayes"})  # fmt: skip
     physics = TargetWorld().physics(get_setting(SETTING).physics())
