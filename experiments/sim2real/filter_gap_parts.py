@@ -96,7 +96,9 @@ def main() -> None:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         parser.error(f"--out: cannot make {out}: {err.strerror}")
-    config = Sim2RealConfig(setting=SETTING, lab=args.lab,
+    # As measured on 2026-12-04, before the protocol read the speeds the robot reports:
+    # `executed-speed` is what reading them gives (`masspush sim2real` does it by default).
+    config = Sim2RealConfig(setting=SETTING, lab=args.lab, read_speeds=False,
                             models={"random": "rp", "learned": "bayes"})  # fmt: skip
     physics = TargetWorld().physics(get_setting(SETTING).physics())
     print("| lab | put back to training | accuracy (estimate) | chains lost |")

@@ -92,6 +92,28 @@ def test_a_recording_round_trips_and_becomes_predictor_input(tmp_path):
     np.testing.assert_allclose(episodes.masses[0], [0.16, 0.16])
 
 
+def test_a_recording_read_at_its_speeds_passes_each_push_through_the_reader():
+    seen = []
+
+    def reader(config, lengths, action, speed):
+        seen.append((np.asarray(config).copy(), list(lengths), speed))
+        return np.array([speed, action[1]], np.float32)
+
+    no_speeds = {k: v for k, v in EPISODE.items() if k != "speeds"}
+    recording = Recording(n_links=2, setting="2link-0.1-1", episodes=[EPISODE, no_speeds])
+    episodes = recording.to_episodes(reader)
+    np.testing.assert_allclose(episodes.actions[0, :, 0], EPISODE["speeds"])
+    np.testing.assert_allclose(episodes.actions[0, :, 1], np.asarray(EPISODE["actions"])[:, 1])
+    # Without speeds the actions are the recorded ones, as without a reader.
+    np.testing.assert_allclose(episodes.actions[1], EPISODE["actions"])
+    np.testing.assert_allclose(recording.to_episodes().actions[0], EPISODE["actions"])
+    # Each push is read from the rest pose it was made from.
+    assert len(seen) == len(EPISODE["speeds"])
+    for k, (config, lengths, speed) in enumerate(seen):
+        np.testing.assert_allclose(config, EPISODE["observations"][k], rtol=1e-6)
+        assert lengths == list(EPISODE["lengths"]) and speed == EPISODE["speeds"][k]
+
+
 @pytest.mark.parametrize(
     ("change", "line", "field", "message"),
     [

@@ -72,6 +72,13 @@ def test_finetune_and_classify_commands(labelled_recording, tmp_path, capsys):
     assert "pushes each, ended early: none" in printed
     assert main(["classify", "--classifier", str(out), "--episodes", str(labelled_recording)]) == 0
     assert "accuracy on the" in capsys.readouterr().out
+    # The pushes were read at their recorded speeds, and the classifier file says so.
+    assert all("speeds" in e for e in read_recording(labelled_recording).episodes)
+    assert load_classifier(out)[2]["read_speeds"] is True
+    as_commanded = tmp_path / "commanded.pt"
+    assert main(["finetune", *args, "--out", str(as_commanded), "--folds", "3",
+                 "--no-read-speeds"]) == 0  # fmt: skip
+    assert load_classifier(as_commanded)[2]["read_speeds"] is False
     with pytest.raises(ValueError, match=r"not '2link-0\.1-1'"):
         load_classifier(out, "2link-0.1-1")
     # A predictor of another setting is refused, with a clear message on the command line.

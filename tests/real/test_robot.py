@@ -205,6 +205,50 @@ def test_a_stationary_robots_governor_slows_the_push_it_is_told_and_records_it(p
         np.testing.assert_array_equal(episode.actions[k], told)  # what the history holds
 
 
+class _Listening:
+    """A predictor that keeps every history it is asked about."""
+
+    def __init__(self, n_links: int = 2):
+        self.histories: list = []
+        self.n_links = n_links
+
+    def predict(self, history):
+        self.histories.append(history)
+        return np.full((1, history.actions.shape[1], self.n_links), 1 / self.n_links)
+
+
+def test_the_predictor_reads_each_push_at_the_speed_the_robot_reports():
+    robot = SimRobot("real-ur10", seed=7, pushes=3)
+    listening = _Listening()
+
+    def reader(config, lengths, action, speed):  # stands for `speed_reader`: shows its input
+        return np.array([speed, action[1]], np.float32)
+
+    episode = run_estimation(robot, listening, RandomPolicy(), 3, seed=2, read_speed=reader)
+    speeds = [r.speed for r in episode.reports if r.config is not None]
+    assert speeds and all(s > 0 for s in speeds)
+    last = listening.histories[-1]
+    np.testing.assert_allclose(last.actions[0, :, 0], speeds, rtol=1e-6)
+    np.testing.assert_allclose(last.actions[0, :, 1], np.asarray(episode.actions)[: len(speeds), 1])
+    # The recording keeps what was commanded, and the speeds beside it.
+    recorded = episode.recorded(id="x")
+    np.testing.assert_array_equal(recorded["actions"], episode.actions[: len(speeds)])
+    assert recorded["speeds"] == speeds
+
+
+def test_the_shipped_models_read_a_slower_push_as_a_slower_action():
+    from masspush.real.robot import speed_reader
+    from masspush.settings import get_setting
+
+    setting = get_setting("real-ur10")
+    read = speed_reader(setting.pusher, setting.physics())
+    assert speed_reader("ur10", setting.physics()) is None  # the following arm: not read
+    config, lengths = np.array([0.0, 0.0, 0.2, 0.3]), [0.12, 0.12]
+    action = np.array([0.1, 0.2], np.float32)  # 0.5 m/s: below what the arm reaches there
+    np.testing.assert_allclose(read(config, lengths, action, 0.4), [0.08, 0.2], rtol=1e-5)
+    np.testing.assert_array_equal(read(config, lengths, action, None), action)
+
+
 @pytest.mark.slow
 def test_the_governor_keeps_chains_in_reach_that_full_speed_pushes_lose():
     """Full-speed pushes away from the robot, 6 in a row, on 12 chains: without the governor

@@ -37,6 +37,24 @@ def test_replay_plays_every_recorded_push(recording_of_long_episodes):
     assert any("the first 2 of each" in line for line in said)
 
 
+def test_a_replay_reads_the_recorded_speeds_unless_told_not_to(recording_of_long_episodes):
+    import numpy as np
+
+    from masspush.data.recording import read_recording
+
+    path = str(recording_of_long_episodes)
+    recorded = read_recording(path).episodes
+    read = run_session(SessionConfig("replay", SETTING, "rp+", path), say=lambda _: None)
+    commanded = run_session(
+        SessionConfig("replay", SETTING, "rp+", path, read_speeds=False), say=lambda _: None
+    )
+    for r, c, original in zip(read, commanded, recorded, strict=True):
+        np.testing.assert_array_equal(r["actions"], c["actions"])
+        # Read as commanded, the estimates are the ones made live; at the speeds, others.
+        np.testing.assert_allclose(c["estimates"], original["estimates"], rtol=1e-5)
+        assert not np.allclose(r["estimates"], original["estimates"], rtol=1e-5, atol=0)
+
+
 def test_replay_refuses_more_pushes_than_were_recorded(recording_of_long_episodes):
     config = SessionConfig("replay", SETTING, "rp+", str(recording_of_long_episodes), pushes=4)
     with pytest.raises(ValueError, match=r"episode 'e3' .* recorded 3 push"):

@@ -281,6 +281,24 @@ def test_the_summary_reports_losses_and_the_start_pose_control(run):
             assert arm[kind]["accuracy_attempted"] <= arm[kind]["accuracy"]
     table = (out / "summary.md").read_text()
     assert "start-pose control" in table and "lost the chain" in table
+    assert "at the speed the robot reported (--read-speeds)" in table
+
+
+@pytest.mark.slow
+def test_the_pushes_read_as_commanded_rescore_the_same_recordings(run, tmp_path):
+    import shutil
+    from dataclasses import replace
+
+    out, results = run
+    for arm in ("random", "learned"):
+        for suffix in (".jsonl", ".failures.json"):
+            shutil.copy(out / f"{arm}{suffix}", tmp_path / f"{arm}{suffix}")
+    again = run_sim2real(replace(CONFIG, read_speeds=False), tmp_path, progress=False)
+    assert all(again["arms"][arm]["reused"] for arm in ("random", "learned"))
+    assert "read each push as commanded (--no-read-speeds)" in (tmp_path / "summary.md").read_text()
+    # The predictor read other actions: its features, so its error, differ.
+    learned = results["arms"]["learned"]["percentage_error"]
+    assert again["arms"]["learned"]["percentage_error"] != learned
 
 
 @pytest.mark.slow
@@ -327,7 +345,7 @@ def test_the_particle_filter_is_an_arm_scored_on_the_estimates_it_recorded(densi
     recording = read_recording(tmp_path / "learned.jsonl")
     assert recording.robot == (
         "masspush training world, 2 runs of the policy per episode, bayes weighing pushes "
-        "with density.pt (particles=512)"
+        "with density.pt (particles=512), speeds read"
     )
     assert all(len(e["estimates"]) == len(e["actions"]) for e in recording.episodes)
     learned = results["arms"]["learned"]

@@ -24,7 +24,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -33,6 +33,10 @@ import numpy as np
 
 from masspush.config import MAX_PUSHES, ChainGeometry
 from masspush.data.rollout import Episodes, empty_episodes
+
+SpeedReader = Callable[[np.ndarray, Any, np.ndarray, "float | None"], np.ndarray]
+"""(rest pose before the push, link lengths, the action, the speed the robot reported or None)
+-> the action the models read (`masspush.sim.SpeedEquivalent.action`)."""
 
 FORMAT, VERSION = "masspush-episodes", 1
 UNITS = {"length": "m", "angle": "rad", "mass": "kg"}
@@ -89,9 +93,11 @@ class Recording:
     def labels(self) -> list[str | None]:
         return [e.get("label") for e in self.episodes]
 
-    def to_episodes(self) -> Episodes:
+    def to_episodes(self, read_speed: SpeedReader | None = None) -> Episodes:
         """The episodes as the predictor's input, padded to the longest with NaN (an episode
-        recorded with fewer pushes is scored after its last one)."""
+        recorded with fewer pushes is scored after its last one). With `read_speed`, each
+        push whose speed the recording keeps is read as the action that speed stands for
+        (`masspush.real.robot.speed_reader`)."""
         k = max(len(e["actions"]) for e in self.episodes)
         n, d = self.n_links, 3 + self.n_links - 1
         out = empty_episodes(len(self.episodes), k, n)
@@ -99,6 +105,9 @@ class Recording:
         for i, e in enumerate(self.episodes):
             obs = np.asarray(e["observations"], np.float32).reshape(-1, d)
             acts = np.asarray(e["actions"], np.float32).reshape(-1, 2)
+            if read_speed is not None and e.get("speeds") is not None:
+                for j, speed in enumerate(e["speeds"]):
+                    acts[j] = read_speed(obs[j], e["lengths"], acts[j], float(speed))
             out.observations[i, : len(obs)] = out.configs[i, : len(obs)] = obs
             out.actions[i, : len(acts)] = out.executed[i, : len(acts)] = acts
             out.failure[i, : len(acts)] = 0

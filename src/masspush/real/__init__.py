@@ -11,8 +11,8 @@ from masspush._exports import lazy, names
 
 EXPORTS = {
     "robot": ("EstimationEpisode", "GeometryWarning", "PushReport", "RestPose", "Robot",
-              "check_geometry", "fmt", "model_geometry", "print_push", "run_estimation",
-              "run_segments"),
+              "check_geometry", "fmt", "model_geometry", "model_physics", "model_speed_reader",
+              "print_push", "run_estimation", "run_segments", "speed_reader"),
     "backends": ("BACKENDS", "RecordedPolicy", "ReplayMismatchError", "ReplayRobot", "SimRobot",
                  "make_robot"),
     "session": ("SessionConfig", "run_session"),

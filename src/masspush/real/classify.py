@@ -25,7 +25,7 @@ from masspush.real.finetune import (
     save_classifier,
     start_pose_control,
 )
-from masspush.real.robot import check_geometry
+from masspush.real.robot import check_geometry, model_speed_reader
 from masspush.settings import get_setting
 
 
@@ -47,6 +47,10 @@ class FinetuneJob:
     """TOML file with custom settings."""
     allow_mismatch: bool = False
     """Use a recording or predictor of another setting (same number of links)."""
+    read_speeds: bool = True
+    """The predictor reads each push the recording keeps the speed of as the action at which
+    its own pusher would have moved at that speed (`masspush.real.robot.speed_reader`; the
+    classifier file remembers it); --no-read-speeds: as the action commanded."""
 
     def __post_init__(self) -> None:
         check_input(self.episodes, "episodes")
@@ -61,7 +65,7 @@ def finetune(job: FinetuneJob, config: ClassifierConfig) -> list[str]:
     recording, predictor, meta, path = read_with_predictor(
         job.episodes, job.model, setting.name, job.allow_mismatch, setting.n_links
     )
-    episodes = recording.to_episodes()
+    episodes = recording.to_episodes(model_speed_reader(meta) if job.read_speeds else None)
     if job.predictor_out:
         out = finetune_predictor(path, episodes, job.predictor_out, recording=str(job.episodes))
         return [f"fine-tuned predictor: {out}"]
@@ -82,8 +86,8 @@ def finetune(job: FinetuneJob, config: ClassifierConfig) -> list[str]:
     model = fit_classifier(features, labels[owner], len(classes), config)
     info = {"setting": setting.name, "predictor": str(path), "predictor_meta": meta,
             "features": config.features, "segment": config.segment, "runs": config.runs,
-            "episodes": str(job.episodes), "cross_validation": scores,
-            "start_pose_control": control}  # fmt: skip
+            "read_speeds": job.read_speeds, "episodes": str(job.episodes),
+            "cross_validation": scores, "start_pose_control": control}  # fmt: skip
     saved = save_classifier(job.out, model, classes, config, info)
     return [*lines, f"saved {saved} (trained on all)"]
 
@@ -152,13 +156,15 @@ class ClassifyJob:
 def classify(job: ClassifyJob) -> list[str]:
     """Each episode's class and probability, and the accuracy on the labelled ones."""
     model, classes, meta = load_classifier(job.classifier)
-    predictor, _ = load_model(meta["predictor"], meta["setting"])
+    predictor, predictor_meta = load_model(meta["predictor"], meta["setting"])
     # Classifiers saved before runs could be read one by one averaged them.
     reading = ClassifierConfig(
         features=meta.get("features", "estimate"),
         segment=meta.get("segment", 0),
         runs=meta.get("runs", "average"),
     )
+    # Read as the classifier's training read them (files from before: as commanded).
+    read_speed = model_speed_reader(predictor_meta) if meta.get("read_speeds") else None
     lines, right, known = [], 0, 0
     # Piece by piece: a recording of any size is classified in the memory of one piece.
     for i, piece in enumerate(iter_recording(job.episodes)):
@@ -167,7 +173,7 @@ def classify(job: ClassifyJob) -> list[str]:
                 piece, job.episodes, meta["setting"], predictor.n_links, job.allow_mismatch,
                 meta.get("predictor_meta"),
             )  # fmt: skip
-        features, owner = classifier_inputs(predictor, piece.to_episodes(), reading)
+        features, owner = classifier_inputs(predictor, piece.to_episodes(read_speed), reading)
         probs = np.exp(episode_log_probs(model, features, owner, len(piece.episodes)))
         for episode, p in zip(piece.episodes, probs, strict=True):
             guess = classes[int(p.argmax())]

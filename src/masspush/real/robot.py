@@ -20,7 +20,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from masspush.config import ChainGeometry
+from masspush.config import ChainGeometry, PhysicsConfig
+from masspush.data.recording import SpeedReader
 from masspush.data.rollout import Episodes
 
 
@@ -28,20 +29,41 @@ class GeometryWarning(UserWarning):
     """A chain (or tool) of another geometry than the model was trained for."""
 
 
-def model_geometry(meta: dict[str, Any]) -> ChainGeometry:
-    """The chain geometry and tool radius a model (its metadata) was trained for."""
+def model_physics(meta: dict[str, Any]) -> PhysicsConfig:
+    """The physics a model (its metadata) was trained in."""
     from masspush.settings import Setting
-    from masspush.sim.pushers import tool_radius
 
     known = {"name", "n_links", "mass_range", "overrides"}
-    setting = Setting(**{k: v for k, v in meta["setting"].items() if k in known})
-    physics = setting.physics()
+    return Setting(**{k: v for k, v in meta["setting"].items() if k in known}).physics()
+
+
+def model_geometry(meta: dict[str, Any]) -> ChainGeometry:
+    """The chain geometry and tool radius a model (its metadata) was trained for."""
+    from masspush.sim.pushers import tool_radius
+
+    physics = model_physics(meta)
     return ChainGeometry(
         physics.link_width,
         physics.link_height,
         physics.joint_gap,
         tool_radius(meta.get("pusher", "stiff"), physics),
     )
+
+
+def speed_reader(pusher: str, physics: PhysicsConfig) -> SpeedReader | None:
+    """How models trained with `pusher` in `physics` read a push the robot reports the speed
+    of: as the action at which their pusher would have moved at that speed
+    (`masspush.sim.SpeedEquivalent.action`); None where that pusher's plan does not set its
+    speed (an arm limited by its torques alone)."""
+    from masspush.sim.pushers import speed_equivalent
+
+    equivalent = speed_equivalent(pusher, physics)
+    return None if equivalent is None else equivalent.action
+
+
+def model_speed_reader(meta: dict[str, Any]) -> SpeedReader | None:
+    """`speed_reader` for the model of metadata `meta`: its pusher, its physics."""
+    return speed_reader(meta.get("pusher", "stiff"), model_physics(meta))
 
 
 def check_geometry(meta: dict[str, Any], geometry: ChainGeometry, tolerance: float = 1e-3) -> None:
@@ -116,6 +138,10 @@ class EstimationEpisode:
     estimates: list[np.ndarray] = field(default_factory=list)
     run_estimates: list[np.ndarray] = field(default_factory=list)
     """Each run's last estimate, when the episode is runs of the policy (`run_segments`)."""
+    read_speed: SpeedReader | None = None
+    """How the predictor reads a push the robot reported the speed of (`speed_reader`);
+    None: as the action commanded."""
+    _read: list[np.ndarray] = field(default_factory=list, init=False, repr=False)
 
     @property
     def failure(self) -> str | None:
@@ -143,11 +169,17 @@ class EstimationEpisode:
         """The successful pushes so far, in the predictor's input format."""
         configs = [self.start.config] + [r.config for r in self.reports if r.config is not None]
         k = len(configs) - 1
+        actions = np.asarray(self.actions[:k], np.float32).reshape(1, k, 2)
+        if self.read_speed is not None:
+            for j in range(len(self._read), k):  # each push read once, as it comes
+                self._read.append(self.read_speed(
+                    configs[j], self.start.lengths, actions[0, j], self.reports[j].speed
+                ))  # fmt: skip
+            actions[0] = np.reshape(self._read[:k], (k, 2))
         return Episodes.history(
-            np.asarray(configs, np.float32)[None],
-            np.asarray(self.actions[:k], np.float32).reshape(1, k, 2),
+            np.asarray(configs, np.float32)[None], actions,
             self.start.lengths[None].astype(np.float32),
-        )
+        )  # fmt: skip
 
 
 PushCallback = Callable[[int, np.ndarray, PushReport, "np.ndarray | None"], None]
@@ -162,14 +194,17 @@ def run_estimation(
     start: RestPose | None = None,
     seed: int = 0,
     fresh: bool = True,
+    read_speed: SpeedReader | None = None,
 ) -> EstimationEpisode:
     """One episode: the policy picks each push from what has been seen, the robot executes
     it, and the predictor estimates the mass distribution after it. `on_push(k, action,
     report, estimate)` hears of every push as it happens (estimate None for a failed push);
     `start` is the episode's first rest pose when the caller has started the robot; `fresh`
-    False keeps the policy's memory of the run before (`run_segments`)."""
+    False keeps the policy's memory of the run before (`run_segments`); `read_speed`: how the
+    predictor reads a push the robot reports the speed of (`speed_reader`), None: as
+    commanded."""
     rest = start if start is not None else robot.start()
-    episode = EstimationEpisode(rest)
+    episode = EstimationEpisode(rest, read_speed=read_speed)
     d = len(rest.config)
     observed = np.full((1, pushes + 1, d), np.nan, np.float32)
     chosen = np.full((1, pushes, 2), np.nan, np.float32)
@@ -205,6 +240,7 @@ def run_segments(
     segments: int,
     on_push: PushCallback | None = None,
     seed: int = 0,
+    read_speed: SpeedReader | None = None,
 ) -> EstimationEpisode:
     """`segments` episodes of `pushes` pushes in a row on the same chain, each starting where
     the last one left it, the policy and the predictor starting afresh each time: one
@@ -217,7 +253,7 @@ def run_segments(
         raise ValueError(f"segments must be >= 1, got {segments}")
     runs = getattr(policy, "runs", 1)
     rest = robot.start()
-    whole = EstimationEpisode(rest)
+    whole = EstimationEpisode(rest, read_speed=read_speed)
     for s in range(segments):
         told = None if on_push is None else _numbered_from(s * pushes, on_push)
         part = run_estimation(
@@ -229,6 +265,7 @@ def run_segments(
             start=rest,
             seed=seed * segments + s,
             fresh=s % runs == 0,
+            read_speed=read_speed,
         )
         whole.actions += part.actions
         whole.reports += part.reports

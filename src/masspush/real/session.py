@@ -16,7 +16,14 @@ from masspush.learn.predictor import load_model
 from masspush.models import resolve_model
 from masspush.real.backends import BACKENDS, RecordedPolicy, make_robot
 from masspush.real.filter_arm import FilterArm
-from masspush.real.robot import check_geometry, fmt, print_push, run_segments
+from masspush.real.robot import (
+    check_geometry,
+    fmt,
+    model_speed_reader,
+    print_push,
+    run_segments,
+    speed_reader,
+)
 from masspush.settings import Setting, get_setting
 from masspush.sim.pushers import PUSHERS
 
@@ -61,6 +68,10 @@ class SessionConfig:
     for every episode."""
     settings_file: str | None = None
     """TOML file with custom settings."""
+    read_speeds: bool = True
+    """The model reads each push the robot reports the speed of as the action at which its
+    own pusher would have moved at that speed (`masspush.real.robot.speed_reader`);
+    --no-read-speeds: as the action commanded."""
 
     def __post_init__(self) -> None:
         known = (*PUSHERS, *BACKENDS)
@@ -117,11 +128,15 @@ def run_session(config: SessionConfig, say=print) -> list[dict]:
     filter_arm = None
     if config.model in BAYES_MODELS:
         predictor = filter_arm = FilterArm.load(config.model, setting, config.seed)
+        read_speed = speed_reader(setting.pusher, setting.physics())
     else:
         path = resolve_model(config.model, setting.name)
         predictor, meta = load_model(
             path, setting.name, allow_mismatch=config.allow_mismatch, n_links=setting.n_links
         )
+        read_speed = model_speed_reader(meta)
+    if not config.read_speeds:
+        read_speed = None
     pushes = setting.env_config().pushes if config.pushes is None else config.pushes
     robot = make_robot(
         config.robot, setting, config.episodes_file, config.seed, config.masses, config.lab,
@@ -167,7 +182,7 @@ def run_session(config: SessionConfig, say=print) -> list[dict]:
             say(f"episode {i + 1}:")
             episode = run_segments(
                 robot, predictor, policy, episode_pushes[i], config.segments, print_push,
-                seed=config.seed + i,
+                seed=config.seed + i, read_speed=read_speed,
             )  # fmt: skip
             if len(episode.run_estimates) > 1 and filter_arm is None:
                 mean = np.mean(episode.run_estimates, axis=0)

@@ -80,6 +80,10 @@ class Sim2RealConfig:
     bayes: dict[str, Any] | None = None
     """`BayesConfig` fields a particle-filter arm runs with instead of its defaults
     (`masspush sim2real --bayes KEY=VALUE`), e.g. {"likelihood_power": 0.5}."""
+    read_speeds: bool = True
+    """The models read each push at the speed the robot reports it reached, as the action at
+    which their own pusher would have moved at that speed (`masspush.real.robot.speed_reader`);
+    --no-read-speeds: as the action commanded."""
     classifier: ClassifierConfig = field(default_factory=ClassifierConfig)
     models: dict[str, str] = field(default_factory=lambda: dict(ARMS))
     """Each arm's model (shipped name or path): its policy pushes, its predictor's
@@ -217,6 +221,17 @@ def _fitted_governor(config: Sim2RealConfig, setting):
     return fit_governor(governor, config.governor_fit)
 
 
+def _speed_reader(config: Sim2RealConfig):
+    """How the arms' models read a push's reported speed here, or None (`read_speeds`)."""
+    from masspush.real.robot import speed_reader
+    from masspush.settings import get_setting
+
+    if not config.read_speeds:
+        return None
+    setting = get_setting(config.setting)
+    return speed_reader(setting.pusher, setting.physics())
+
+
 def class_robot(
     setting, c: int, seed: int = 0, world=None, lab: int | None = None, pushes: int | None = None
 ):  # fmt: skip
@@ -255,11 +270,13 @@ def _record_class(shared: tuple, c: int, advance=None) -> tuple[list, dict, dict
         robot.governor = governor
     if isinstance(policy, FilterArm):  # its candidates compared as this robot makes them
         policy.governor = robot.governor
+    read_speed = _speed_reader(config)
     episodes, failures = [], {}
     tally = {k: 0 for k in ("attempted", "kept", "lost", "failed")}
     tally["good_pushes"] = 0
     for i in range(config.episodes_per_class):
-        episode = run_segments(robot, predictor, policy, pushes, config.segments, seed=robot.seed)
+        episode = run_segments(robot, predictor, policy, pushes, config.segments,
+                               seed=robot.seed, read_speed=read_speed)  # fmt: skip
         tally["attempted"] += 1
         tally["good_pushes"] += len(episode.estimates)
         if episode.failure is not None:
@@ -309,6 +326,8 @@ def record_arm(
             robot_name += f" weighing pushes with {Path(config.density).name}"
         if model in BAYES_MODELS and config.bayes:
             robot_name += f" ({', '.join(f'{k}={v}' for k, v in sorted(config.bayes.items()))})"
+        if model in BAYES_MODELS:  # its recorded estimates depend on it
+            robot_name += ", speeds read" if config.read_speeds else ", speeds not read"
     if path.exists() and counts.exists():
         kept = json.loads(counts.read_text())
         recording = read_recording(path)
@@ -363,7 +382,7 @@ def score_arm(config: Sim2RealConfig, arm: str, path: Path) -> dict[str, Any]:
 
     recording = read_recording(path)
     model = config.models[arm]
-    episodes = recording.to_episodes()
+    episodes = recording.to_episodes(_speed_reader(config))
     labels, classes = labelled(recording)
     kinds = arm_feature_kinds(model)
     scores: dict[str, Any] = {
@@ -571,7 +590,10 @@ def summary_markdown(results: dict[str, Any]) -> str:
     lines += ["", "Accuracy is over the episodes kept (at least one good push), each classified "
               "from the pushes it has; no episode is replaced. The start-pose control is the "
               "same classifier given only each episode's start pose: above chance, which "
-              "episodes were kept depends on the class.", "",
+              "episodes were kept depends on the class. "
+              + ("The models read each push at the speed the robot reported (--read-speeds)."
+                 if config.get("read_speeds", False) else
+                 "The models read each push as commanded (--no-read-speeds)."), "",
               "| policy | class | attempted | kept | lost the chain | failed otherwise "
               "| good pushes per episode |", "|---|---|---|---|---|---|---|"]  # fmt: skip
     for arm, r in results["arms"].items():

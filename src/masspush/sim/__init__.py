@@ -13,7 +13,7 @@ EXPORTS = {
     "simulate": ("FAILURES", "REACH_FAILURES", "ChainSim", "PushOutcome"),
     "batch": ("ChainBatch",),
     "pushers": ("PUSHERS", "PUSHER_KINDS", "ArmPusher", "StiffPusher", "make_pusher",
-                "pusher_kind", "reach_governor"),
+                "pusher_kind", "reach_governor", "SpeedEquivalent", "speed_equivalent"),
     "convergence": ("format_table", "validate_physics"),
     "workspace": ("ReachGovernor", "Workspace", "fit_slides", "push_slides"),
 }  # fmt: skip

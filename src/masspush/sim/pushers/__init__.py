@@ -13,6 +13,7 @@ from masspush.config import PhysicsConfig
 from masspush.sim.pushers import compiled
 from masspush.sim.pushers.arm import ARMS, ArmPusher
 from masspush.sim.pushers.base import Pusher, PusherKind, StepHook
+from masspush.sim.pushers.speed_equivalent import SpeedEquivalent
 from masspush.sim.pushers.stiff import StiffPusher, park
 from masspush.sim.workspace import ReachGovernor
 
@@ -94,6 +95,15 @@ def reach_governor(name: str, physics: PhysicsConfig) -> ReachGovernor | None:
     return None if workspace is None else ReachGovernor(workspace, physics)
 
 
+def speed_equivalent(name: str, physics: PhysicsConfig) -> SpeedEquivalent | None:
+    """How the pusher `name` reads a push made at a reported speed (`SpeedEquivalent`); None
+    for an arm limited by its torques alone, whose plan does not set the speed it reaches."""
+    pusher = make_pusher(name)
+    if isinstance(pusher, ArmPusher) and pusher.arm.joint_speed_limit is None:
+        return None
+    return SpeedEquivalent(pusher, physics)
+
+
 def pusher_field(default: str | None = None, arms_only: bool = False) -> Any:
     """A config dataclass field that names a pusher (an arm, where `arms_only`): the known
     names ride in its metadata (`choices`), so that the command line lists them in the
@@ -114,6 +124,7 @@ __all__ = [
     "ArmPusher",
     "Pusher",
     "PusherKind",
+    "SpeedEquivalent",
     "StepHook",
     "StiffPusher",
     "make_pusher",
@@ -122,5 +133,6 @@ __all__ = [
     "pusher_field",
     "pusher_kind",
     "reach_governor",
+    "speed_equivalent",
     "tool_radius",
 ]
