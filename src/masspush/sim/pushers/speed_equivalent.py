@@ -5,8 +5,9 @@ action. A real robot's push may be slower or faster than the action commands (a 
 scaling, a controller's gain), and a robot that reports the speed it reached
 (`masspush.real.robot.PushReport.speed`) says so. To the models that push is the action at which
 their own pusher would have moved at that speed, from the same pose, on the same link and side:
-`SpeedEquivalent.action`. Measured (docs/notebook/2026-12-04-executed-speed.md): the particle
-filter's 2-push classes in the target world's labs gain about 3 points from it.
+`SpeedEquivalent.action`. Measured (docs/notebook/2026-12-04-executed-speed.md): in the
+target world's labs this changes the protocol's accuracy by no more than its noise, because
+the stationary UR10's pushes are mostly capped by its joints, whatever speed was commanded.
 
 Defined only for pushers whose speed the push's plan sets: the stiff pusher (the commanded
 speed) and an arm with joint speed limits (the stationary UR10, whose plan scales a push down
