@@ -94,8 +94,10 @@ def main() -> None:
     )
     args = parser.parse_args()
 
-    if args.episodes < 1 or args.frictions < 1:
-        parser.error("--episodes and --frictions must be at least 1")
+    if args.episodes < 1:
+        parser.error("--episodes must be at least 1")
+    if args.frictions < 2:  # the filter holds 5 classes x frictions and needs 8 at least
+        parser.error("--frictions must be at least 2")
     path = Path(args.recording)
     if not path.is_file():
         parser.error(f"recording: no such file {path}")

@@ -142,9 +142,12 @@ def main() -> None:
         "train-density`) instead of simulating the robot for each hypothesis",
     )  # fmt: skip
     args = parser.parse_args()
-    for name in ("episodes", "candidates", "lookahead", "frictions", "pushes"):
-        if getattr(args, name) < 1:
-            parser.error(f"--{name} must be at least 1")
+    # The filter holds 5 classes x --frictions particles and needs 8 at least, and 4
+    # lookahead particles: said here, before --out is written.
+    least = {"episodes": 1, "candidates": 1, "lookahead": 4, "frictions": 2, "pushes": 1}
+    for name, low in least.items():
+        if getattr(args, name) < low:
+            parser.error(f"--{name} must be at least {low}")
     for name in ("lab", "chains", "seed"):  # seeds of worlds and chains
         if (getattr(args, name) or 0) < 0:
             parser.error(f"--{name} must be at least 0")

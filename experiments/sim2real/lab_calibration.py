@@ -68,6 +68,10 @@ def main() -> None:
     parser.add_argument("--folds", type=int, default=5)
     parser.add_argument("--seed", type=int, default=0, help="the folds' shuffle")
     args = parser.parse_args()
+    if args.frictions < 1 or (args.pushes is not None and args.pushes < 1):
+        parser.error("--frictions and --pushes must be at least 1")
+    if args.folds < 2:
+        parser.error("--folds must be at least 2")
     path = Path(args.episodes)
     try:
         episodes = list(json.loads(path.read_text())["episodes"].values())
