@@ -9,11 +9,14 @@ back), and once (`told`) in the target world with the filter told the lab's cons
 calibration could find: each push's speed gain and contact bias applied to the action it
 weighs, the tracker's bias taken off both rest poses; and (`executed`, `executed-speed`)
 with the filter told each push as the robot executed it, noise included (speed and contact
-point, or the speed alone: what a robot that reports its executed speed could give). Same
-chains and seeds in every row (paired); only the learned arm is run.
+point, or the speed alone: what a robot that reports its executed speed could give), or
+(`read`) each push read at the speed the robot reports, as `masspush sim2real` reads it.
+Same chains and seeds in every row (paired); only the learned arm is run. `--density` weighs
+the pushes with another push density, e.g. one conditioned on the executed pushes
+(`masspush train-density --actions executed`).
 
     python experiments/sim2real/filter_gap_parts.py [--lab 5] [--groups none,all,told,...]
-        [--out results/sim2real-filter-gap-parts]
+        [--density FILE] [--out results/sim2real-filter-gap-parts]
 
 Recordings are kept in `--out/<lab>/<group>.jsonl` and reused; prints one row per group.
 """
@@ -22,6 +25,7 @@ import argparse
 import contextlib
 import json
 import sys
+from dataclasses import replace
 from pathlib import Path
 from unittest import mock
 
@@ -80,8 +84,9 @@ def main() -> None:
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--lab", type=int, default=5)
-    told = ("told", "executed", "executed-speed")
+    told = ("told", "executed", "executed-speed", "read")
     parser.add_argument("--groups", default=",".join(["none", "all", *told, *list(GROUPS)[1:]]))
+    parser.add_argument("--density", default=None, help="push density file (default: shipped)")
     parser.add_argument("--out", default="results/sim2real-filter-gap-parts")
     args = parser.parse_args()
     groups = args.groups.split(",")
@@ -96,32 +101,43 @@ def main() -> None:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         parser.error(f"--out: cannot make {out}: {err.strerror}")
-    # As measured on 2026-12-04, before the protocol read the speeds the robot reports:
-    # `executed-speed` is what reading them gives (`masspush sim2real` does it by default).
-    config = Sim2RealConfig(setting=SETTING, lab=args.lab, read_speeds=False,
-                            models={"random": "rp", "learned": "bayes"})  # fmt: skip
+    # As measured on 2026-12-04, before the protocol read the speeds the robot reports
+    # (`masspush sim2real` does it by default): every group but `read` weighs as commanded.
+    arms = {"random": "rp", "learned": "bayes"}
+    try:  # a bad --density is said before any episode
+        config = Sim2RealConfig(setting=SETTING, lab=args.lab, read_speeds=False, models=arms,
+                                density=args.density)  # fmt: skip
+    except ValueError as err:
+        parser.error(str(err))
+    weighed = "" if args.density is None else f", density {Path(args.density).name}"
     physics = TargetWorld().physics(get_setting(SETTING).physics())
     print("| lab | put back to training | accuracy (estimate) | chains lost |")
     print("|---|---|---|---|")
     for group in groups:
         world = TargetWorld() if group in told else world_without(group)
         path = out / f"{group}.jsonl"
-        name = f"masspush target world, lab {args.lab}, {group} put back, bayes"
-        if group == "told":
-            name = f"masspush target world, lab {args.lab}, the filter told its constants, bayes"
+        name = f"masspush target world, lab {args.lab}, {group} put back, bayes{weighed}"
+        run = replace(config, read_speeds=group == "read")
+        if group == "read":
+            name = f"masspush target world, lab {args.lab}, speeds read, bayes{weighed}"
+            patches = []
+        elif group == "told":
+            name = (f"masspush target world, lab {args.lab}, the filter told its constants, "
+                    f"bayes{weighed}")  # fmt: skip
             patches = [mock.patch.object(FilterArm, "predict",
                                          told_predict(Lab(args.lab, world, physics)))]  # fmt: skip
         elif group in told:
-            name = f"masspush target world, lab {args.lab}, the filter told the {group} push, bayes"
+            name = (f"masspush target world, lab {args.lab}, the filter told the {group} push, "
+                    f"bayes{weighed}")  # fmt: skip
             patches = executed_patches([0] if group == "executed-speed" else [0, 1])
         else:
             patches = []
         with contextlib.ExitStack() as stack:
             for patch in patches:
                 stack.enter_context(patch)
-            kept = record_arm(config, "learned", path, progress=False, target=world,
+            kept = record_arm(run, "learned", path, progress=False, target=world,
                               robot_name=name)  # fmt: skip
-        scores = score_arm(config, "learned", path)
+        scores = score_arm(run, "learned", path)
         lost = sum(c["lost"] for c in kept["by_class"].values())
         (out / f"{group}.json").write_text(json.dumps({"kept": kept, "scores": scores}) + "\n")
         print(f"| {args.lab} | {group} | {100 * scores['estimate']['accuracy']:.1f} % | {lost} |",

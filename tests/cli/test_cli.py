@@ -95,6 +95,23 @@ def test_randomise_passes_the_policy_training_on(tmp_path, monkeypatch, capsys):
     assert seen["out"] == "runs/randomise-2link-1-10-target-lab5"
 
 
+def test_a_warning_is_one_line_said_once(monkeypatch, capsys):
+    import warnings
+
+    import masspush.real.randomise
+
+    def fake(config, out, workers, ship):
+        for line in (1, 2):  # two places in masspush say the same
+            warnings.warn_explicit("density trained on executed pushes\nsecond line", UserWarning,
+                                   "f.py", line, module="masspush.learn.push_density")  # fmt: skip
+        return "p.pt"
+
+    monkeypatch.setattr(masspush.real.randomise, "randomise", fake)
+    main(["randomise", "--setting", "2link-1-10"])
+    err = capsys.readouterr().err
+    assert err == "masspush randomise: warning: density trained on executed pushes second line\n"
+
+
 @pytest.mark.slow
 def test_run_on_one_lab_of_the_target_world_records_it(tmp_path, capsys):
     out = tmp_path / "lab.jsonl"

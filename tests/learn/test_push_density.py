@@ -1,3 +1,5 @@
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import torch
@@ -66,6 +68,27 @@ def test_failed_pushes_and_those_after_are_left_out():
 
     x, y = episode_pushes(Episodes)
     assert len(x) == len(y) == 2 + 0 + 1
+
+
+def test_a_density_may_read_the_pushes_as_executed():
+    class Episodes:
+        observations = np.zeros((1, 2, 4))
+        actions = np.array([[[0.5, -0.5]]])
+        executed = np.array([[[0.6, -0.3]]])
+        masses, friction, lengths = np.ones((1, 2)), np.ones(1), np.full((1, 2), 0.12)
+        failure = np.zeros((1, 1), int)
+
+    # push_inputs: the joint angle (2 links), then the action
+    def action(which):
+        x = episode_pushes(Episodes, which=which)[0]
+        return x[0, 1:3]
+
+    np.testing.assert_allclose(action("commanded"), [0.5, -0.5])
+    np.testing.assert_allclose(action("executed"), [0.6, -0.3])
+    np.testing.assert_allclose(action("executed-speed"), [0.6, -0.5])
+    np.testing.assert_array_equal(Episodes.actions, [[[0.5, -0.5]]])  # the dataset untouched
+    with pytest.raises(ValueError, match="actions must be one of"):
+        DensityConfig(data=("d",), out="x.pt", actions="planned")
 
 
 def test_training_writes_a_density_that_resumes_to_the_same_weights(dataset, tmp_path, monkeypatch):
@@ -174,6 +197,10 @@ def test_a_density_loads_only_for_the_chains_and_pusher_it_was_trained_for(datas
     with pytest.raises(ValueError, match="obs_noise"):
         density_for(config.out, EnvConfig(physics=SETTING.physics(), pusher="stiff",
                                           obs_noise=0.0))  # fmt: skip
+    executed = replace(config, out=str(tmp_path / "e.pt"), actions="executed")
+    train_push_density(executed, progress=False)
+    with pytest.warns(UserWarning, match="contact point as commanded"):
+        assert density_for(executed.out, env).meta["actions"] == "executed"
 
 
 def test_placed_inputs_add_where_the_chain_lies():

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import warnings
 from collections.abc import Sequence
 
 from masspush.cli import data, estimate, real, reports, train
@@ -95,6 +96,13 @@ def _one_line(err: BaseException) -> str:
     return " ".join(str(err).split()) or type(err).__name__
 
 
+def _one_line_warning(chosen: str | None):
+    def show(message, category, filename, lineno, file=None, line=None) -> None:
+        print(f"masspush {chosen}: warning: {_one_line(message)}", file=file or sys.stderr)
+
+    return show
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one command. Bad input (exit 2) and a failing file system (exit 1) end in one line
     on stderr, `masspush COMMAND: error: ...`; `--debug` (or MASSPUSH_DEBUG=1) shows the
@@ -106,7 +114,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser(only=chosen, everything=False)
     args = parser.parse_args(argv)  # a usage error: argparse's message, exit 2
     try:
-        return args.func(args)
+        with warnings.catch_warnings():
+            if not debug:  # our warnings to a user: one line each, said once
+                warnings.showwarning = _one_line_warning(chosen)
+                warnings.filterwarnings("once", category=UserWarning, module="masspush")
+            return args.func(args)
     except BrokenPipeError:  # the reader stopped listening (`| head`): nothing to say
         sys.stderr.close()
         return 0

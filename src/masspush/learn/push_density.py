@@ -30,16 +30,17 @@ from __future__ import annotations
 import hashlib
 import os
 import time
+import warnings
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import torch
 from torch import nn
 from torch.distributions import Categorical, MixtureSameFamily, MultivariateNormal
 
-from masspush.config import check_int, check_output
+from masspush.config import check_choice, check_int, check_output
 from masspush.learn.predictor import check_batch_memory
 from masspush.sim.chain import wrap_angle
 from masspush.sim.pushers import pusher_kind
@@ -49,6 +50,9 @@ PUSH_DENSITY_FILE = "push-density.pt"
 
 FORMAT = 1
 """The model file's format version."""
+
+DENSITY_ACTIONS = ("commanded", "executed", "executed-speed")
+"""What a density's actions are (`DensityConfig.actions`)."""
 
 
 DENSITY_BYTES_PER_PUSH = 12_000
@@ -93,6 +97,12 @@ class DensityConfig:
     """Whether the network sees where the chain lies on the table (`push_inputs`); None:
     where the pusher stands still (a pusher with a workspace), since then a push's outcome
     depends on where the robot reaches to, and elsewhere the table is uniform."""
+    actions: Literal["commanded", "executed", "executed-speed"] = "commanded"
+    """Which actions the density is conditioned on: as commanded; as the robot executed them
+    (the datasets' `executed` actions, the actuation noise added); or the executed speed
+    with the commanded contact point. An executed one is a sharper likelihood for a robot
+    that reports what it did; the filter then weighs each push at what the robot reported
+    (`PushReport.speed`) and a push not reported as commanded."""
 
     def __post_init__(self) -> None:
         if not self.data:
@@ -100,6 +110,7 @@ class DensityConfig:
         for name in ("steps", "batch_size", "components", "width", "depth", "checkpoint_every"):
             check_int(name, getattr(self, name), 1)
         check_int("seed", self.seed, 0)
+        check_choice("actions", self.actions, DENSITY_ACTIONS)
         if not (np.isfinite(self.lr) and self.lr > 0):
             raise ValueError(f"lr must be a positive number, got {self.lr!r}")
         if not 0 < self.held_out < 0.5:
@@ -152,14 +163,18 @@ def rest_poses(start: np.ndarray, outputs: np.ndarray) -> np.ndarray:
 
 
 def episode_pushes(
-    episodes: Any, rows: slice = slice(None), placed: bool = False
+    episodes: Any, rows: slice = slice(None), placed: bool = False, which: str = "commanded"
 ) -> tuple[np.ndarray, np.ndarray]:
     """Every push of a dataset's episodes (`rows` of them) that did not fail, and none after
     a failure: inputs and outputs (`push_inputs`, `push_outputs` with `placed`), each from
     the observed (noisy) rest pose before it to the observed one after, as the filter sees
-    them."""
+    them; the actions `which` `DensityConfig.actions` names."""
     obs = np.asarray(episodes.observations[rows], float)
-    actions = np.asarray(episodes.actions[rows], float)
+    actions = np.array(episodes.actions[rows], float)  # a copy: written below
+    if which != "commanded":
+        executed = np.asarray(episodes.executed[rows], float)
+        parts = slice(None) if which == "executed" else slice(0, 1)  # executed-speed: a1
+        actions[..., parts] = executed[..., parts]
     masses = np.asarray(episodes.masses[rows], float)
     friction = np.asarray(episodes.friction[rows], float)
     lengths = np.asarray(episodes.lengths[rows], float)
@@ -318,6 +333,13 @@ def density_for(path: str | os.PathLike, env_config: Any) -> PushDensity:
         "mass_range": list(physics.mass_range), "friction_range": list(physics.friction_range),
         "obs_noise": env_config.obs_noise, "action_noise": env_config.action_noise,
     })  # fmt: skip
+    if net.meta.get("actions") == "executed":
+        warnings.warn(
+            f"push density {path} was trained on the pushes as executed: the filter weighs "
+            "each push's speed as the robot reports it but its contact point as commanded "
+            "(no robot reports the point it touched)",
+            stacklevel=2,
+        )
     return net
 
 
@@ -368,6 +390,7 @@ def train_push_density(config: DensityConfig, progress: bool = True) -> dict:
     if placed is None:
         placed = pusher_kind(first.pusher).workspace is not None
     meta["placed"] = placed
+    meta["actions"] = config.actions
     out, ckpt = Path(config.out), Path(f"{config.out}.ckpt")
     out.parent.mkdir(parents=True, exist_ok=True)
     fit, held = ([], []), ([], [])
@@ -377,7 +400,7 @@ def train_push_density(config: DensityConfig, progress: bool = True) -> dict:
         seen.append(episodes.friction)
         cut = len(episodes.masses) - max(1, round(config.held_out * len(episodes.masses)))
         for part, rows in ((fit, slice(0, cut)), (held, slice(cut, None))):
-            x, y = episode_pushes(episodes, rows, placed)
+            x, y = episode_pushes(episodes, rows, placed, config.actions)
             part[0].append(x)
             part[1].append(y)
     x_fit, y_fit = np.concatenate(fit[0]), np.concatenate(fit[1])
