@@ -102,7 +102,8 @@ class DensityConfig:
     (the datasets' `executed` actions, the actuation noise added); or the executed speed
     with the commanded contact point. An executed one is a sharper likelihood for a robot
     that reports what it did; the filter then weighs each push at what the robot reported
-    (`PushReport.speed`) and a push not reported as commanded."""
+    (`PushReport.speed`) and a push not reported as commanded. For the stationary UR10
+    neither sorted the labs' chains better (docs/notebook/2026-12-05-executed-density.md)."""
 
     def __post_init__(self) -> None:
         if not self.data:
