@@ -28,6 +28,7 @@ def replayed_estimates(recording, read: bool, seed: int = 0) -> list[np.ndarray]
     """Each episode's filter estimates after each of its recorded pushes."""
     setting = get_setting(recording.setting)
     reader = speed_reader(setting.pusher, setting.physics()) if read else None
+    actions = recording.to_episodes(reader).actions  # as the protocol's models read them
     arm = FilterArm.load("bayes", setting, seed)
     out = []
     try:
@@ -39,10 +40,9 @@ def replayed_estimates(recording, read: bool, seed: int = 0) -> list[np.ndarray]
             row = []
             with warnings.catch_warnings():  # a lab's outlier is weighed all the same
                 warnings.simplefilter("ignore", UnexplainedObservationWarning)
-                for k, action in enumerate(np.asarray(episode["actions"], np.float32)):
-                    if reader is not None:
-                        action = reader(poses[k], episode["lengths"], action, episode["speeds"][k])
-                    posterior = arm.filter.update(poses[k], np.asarray(action, float), poses[k + 1])
+                for k in range(len(episode["actions"])):
+                    action = np.asarray(actions[i, k], float)
+                    posterior = arm.filter.update(poses[k], action, poses[k + 1])
                     row.append(posterior.estimate)
             out.append(np.array(row))
     finally:
