@@ -33,7 +33,7 @@ import time
 import warnings
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, get_args
 
 import numpy as np
 import torch
@@ -51,7 +51,8 @@ PUSH_DENSITY_FILE = "push-density.pt"
 FORMAT = 1
 """The model file's format version."""
 
-DENSITY_ACTIONS = ("commanded", "executed", "executed-speed")
+DensityActions = Literal["commanded", "executed", "executed-speed"]
+DENSITY_ACTIONS = get_args(DensityActions)
 """What a density's actions are (`DensityConfig.actions`)."""
 
 
@@ -97,7 +98,7 @@ class DensityConfig:
     """Whether the network sees where the chain lies on the table (`push_inputs`); None:
     where the pusher stands still (a pusher with a workspace), since then a push's outcome
     depends on where the robot reaches to, and elsewhere the table is uniform."""
-    actions: Literal["commanded", "executed", "executed-speed"] = "commanded"
+    actions: DensityActions = "commanded"
     """Which actions the density is conditioned on: as commanded; as the robot executed them
     (the datasets' `executed` actions, the actuation noise added); or the executed speed
     with the commanded contact point. An executed one is a sharper likelihood for a robot

@@ -99,9 +99,7 @@ def speed_equivalent(name: str, physics: PhysicsConfig) -> SpeedEquivalent | Non
     """How the pusher `name` reads a push made at a reported speed (`SpeedEquivalent`); None
     for an arm limited by its torques alone, whose plan does not set the speed it reaches."""
     pusher = make_pusher(name)
-    if isinstance(pusher, ArmPusher) and pusher.arm.joint_speed_limit is None:
-        return None
-    return SpeedEquivalent(pusher, physics)
+    return SpeedEquivalent(pusher, physics) if SpeedEquivalent.reads(pusher) else None
 
 
 def pusher_field(default: str | None = None, arms_only: bool = False) -> Any:

@@ -40,11 +40,16 @@ class SpeedEquivalent:
     reported speed was to it."""
 
     def __init__(self, pusher: Pusher, physics: PhysicsConfig):
-        if isinstance(pusher, ArmPusher) and pusher.arm.joint_speed_limit is None:
+        if not self.reads(pusher):
             raise ValueError(f"the {pusher.name} pusher's speed is not set by its plan")
         self.pusher = pusher
         self.physics = physics
         self._scene: tuple | None = None
+
+    @staticmethod
+    def reads(pusher: Pusher) -> bool:
+        """Whether the pusher's plan sets its speed (not an arm limited by torques alone)."""
+        return not (isinstance(pusher, ArmPusher) and pusher.arm.joint_speed_limit is None)
 
     def speed(
         self, config: np.ndarray, lengths: Sequence[float], action: np.ndarray
