@@ -56,7 +56,12 @@ def main(argv: list[str] | None = None) -> int:
     try:
         setting = get_setting(args.setting)
         start, meta = load_model(args.predictor, setting.name)
-        action = tuple(float(v) for v in args.initial_action.split(","))
+        try:
+            action = tuple(float(v) for v in args.initial_action.split(","))
+        except ValueError:
+            raise ValueError(
+                f"--initial-action must be two numbers, got {args.initial_action!r}"
+            ) from None
         config = PolicyConfig(
             algo="recurrent", n_envs=args.envs, steps=args.steps, runs=args.runs,
             reward=args.reward, seed=args.seed, log_std_init=args.log_std,
@@ -66,6 +71,10 @@ def main(argv: list[str] | None = None) -> int:
             raise ValueError(f"--init: no policy file at {args.init}")
         if args.episodes < 2 or args.finetune_steps < 1:
             raise ValueError("--episodes must be >= 2 and --finetune-steps >= 1")
+        if Path(args.out).exists() and not Path(args.out).is_dir():
+            raise ValueError(f"--out {args.out} is a file, not a run directory")
+        n = args.finetune_steps
+        train = replace(FINETUNE, steps=n, lr=3e-3, eval_every=n, checkpoint_every=max(1, n // 4))
     except (OSError, ValueError) as err:
         sys.exit(f"error: {' '.join(str(err).split())}")
     out = Path(args.out)
@@ -81,8 +90,6 @@ def main(argv: list[str] | None = None) -> int:
             "recipe_stage": "policy_round experiment"}  # fmt: skip
     if args.runs > 1:
         meta["policy_runs"] = args.runs
-    n = args.finetune_steps
-    train = replace(FINETUNE, steps=n, lr=3e-3, eval_every=n, checkpoint_every=max(1, n // 4))
     train_predictor(data, out / "predictor", train, meta, init=start)
     estimator = PredictorEstimator.from_file(out / "predictor" / "predictor.pt", setting.name)
     for seed in (31, 32):

@@ -64,18 +64,28 @@ def main(argv: list[str] | None = None) -> int:
     try:
         setting = get_setting(args.setting)
         uses, steps = ints("--use", args.use), ints("--steps", args.steps)
-        seeds = [int(s) for s in args.seeds.split(",")]
+        try:
+            seeds = [int(s) for s in args.seeds.split(",")]
+        except ValueError:
+            raise ValueError(f"--seeds must be a list of integers, got {args.seeds!r}") from None
+        if args.episodes < 2:
+            raise ValueError(f"--episodes must be >= 2, got {args.episodes}")
         if max(uses) > args.episodes:
             raise ValueError("--use must not exceed --episodes")
         if args.eval_episodes < 1 or args.members < 1 or not 0 < args.lr < 1:
             raise ValueError("--eval-episodes and --members >= 1, --lr in (0, 1)")
+        out = Path(args.out or f"runs/final-stage-{setting.name}")
+        if out.exists() and not out.is_dir():
+            raise ValueError(f"--out {out} is a file, not a run directory")
+        # Each training's configuration, checked before any episode is collected.
+        trains = {n: replace(FINETUNE, steps=n, lr=args.lr, eval_every=n,
+                             checkpoint_every=max(1, n // 4)) for n in steps}  # fmt: skip
         source = resolve_model(args.model, setting.name)
         predictor, meta, policy = model_and_policy(source, setting.name)
     except ValueError as err:
         sys.exit(f"error: {' '.join(str(err).split())}")
     if meta.get("policy") != "learned":
         sys.exit(f"error: {source} was trained on random pushes; this is for a learned policy's")
-    out = Path(args.out or f"runs/final-stage-{setting.name}")
     # The model's policy file beside the run, so that its predictors name it as shipped ones do.
     policy_file = out / Path(meta["policy_file"]).name
     out.mkdir(parents=True, exist_ok=True)
@@ -92,7 +102,7 @@ def main(argv: list[str] | None = None) -> int:
             name = f"{kind}-use{use}-steps{n}-lr{args.lr:g}" + (
                 f"-x{args.members}" if args.members > 1 else ""
             )
-            train = replace(FINETUNE, steps=n, lr=args.lr, eval_every=n, checkpoint_every=n // 4)
+            train = trains[n]
             here = {**meta, "policy_file": f"../{policy_file.name}", "dataset_episodes": use,
                     "recipe_stage": "shipped final-stage experiment"}  # fmt: skip
             init = None if args.scratch else predictor
