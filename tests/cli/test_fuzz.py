@@ -64,6 +64,7 @@ CASES: dict[str, list[list[str]]] = {
     "classify": [["--classifier", "MISSING"], ["--classifier", "GARBAGE"], ["--episodes", "DIR"]],
     "sim2real": [["--episodes-per-class", "0"], ["--severity", "2"], ["--world", "moon"],
                  ["--lab", "-1"], ["--segments", "0"], ["--setting", "nope"],
+                 ["--start-range", "2"],
                  ["--density", "MISSING"],
                  ["--learned-model", "bayes", "--density", "MISSING"],
                  ["--learned-model", "bayes", "--density", "DIR"],

@@ -70,6 +70,12 @@ class Sim2RealConfig:
     """A recording of random pushes made in this world (e.g. an earlier run's random.jsonl):
     the stationary robot's speed governor takes its slide bounds from them
     (`masspush.real.governor.fit_governor`) instead of the training world's."""
+    start_range: float | None = None
+    """Where the lab places each episode's chain: its first link's centre within
+    +-start_range m of the table origin (x and y each; yaw and hinge angles as the setting
+    draws them), e.g. 0.02 for a chain put down by hand on a marked spot. None: the
+    setting's own range (`real-ur10`: 0.2 m, over most of the stationary robot's workspace),
+    as its models were trained."""
     segments: int = 1
     """Each episode runs the policy this many times in a row on the same chain, each run the
     setting's pushes (`masspush.real.robot.run_segments`); the classifier reads the runs as
@@ -116,6 +122,8 @@ class Sim2RealConfig:
             except ValueError as err:
                 raise ValueError(f"density: {err}") from None
         check_int("lab", self.lab, low=0, optional=True)
+        if self.start_range is not None and not 0 <= self.start_range <= 1:
+            raise ValueError(f"start_range must be in [0, 1] m, got {self.start_range!r}")
         if self.bayes:
             from masspush.bayes.filter import BayesConfig
 
@@ -261,6 +269,9 @@ def _record_class(shared: tuple, c: int, advance=None) -> tuple[list, dict, dict
     config, predictor, policy, world, governor = shared
     label = list(PAPER_CLASSES)[c]
     setting = get_setting(config.setting)
+    if config.start_range is not None:  # the same setting (and models), placed by the lab
+        overrides = {**setting.overrides, "root_xy_range": config.start_range}
+        setting = replace(setting, overrides=overrides)
     pushes = setting.env_config().pushes
     robot = class_robot(
         setting, c, config.seed, world if config.world == "target" else None, config.lab,
@@ -319,6 +330,8 @@ def record_arm(
             robot_name += f", lab {config.lab}"
         if config.governor_fit is not None:
             robot_name += f", speed governor fitted to {config.governor_fit}"
+        if config.start_range is not None:
+            robot_name += f", chains placed within {config.start_range:g} m of the origin"
         if config.segments != 1:
             robot_name += f", {config.segments} runs of the policy per episode"
         robot_name += "" if model == ARMS[arm] else f", {model}"
@@ -593,7 +606,10 @@ def summary_markdown(results: dict[str, Any]) -> str:
               "episodes were kept depends on the class. "
               + ("The models read each push at the speed the robot reported (--read-speeds)."
                  if config.get("read_speeds", False) else
-                 "The models read each push as commanded (--no-read-speeds)."), "",
+                 "The models read each push as commanded (--no-read-speeds).")
+              + ("" if config.get("start_range") is None else
+                 f" Chains placed within {config['start_range']:g} m of the origin "
+                 f"(--start-range)."), "",
               "| policy | class | attempted | kept | lost the chain | failed otherwise "
               "| good pushes per episode |", "|---|---|---|---|---|---|---|"]  # fmt: skip
     for arm, r in results["arms"].items():
