@@ -30,9 +30,12 @@ def summary(run: Path) -> dict:
     if not path.is_file():
         raise ValueError(f"{run}: no summary.json (not a `masspush sim2real` run directory)")
     try:
-        return json.loads(path.read_text())
+        run_summary = json.loads(path.read_text())
     except json.JSONDecodeError as err:
         raise ValueError(f"{path} is not JSON: {err}") from None
+    if not isinstance(run_summary, dict) or not {"config", "arms"} <= run_summary.keys():
+        raise ValueError(f"{path} is not a `masspush sim2real` summary (no config and arms)")
+    return run_summary
 
 
 def push_speeds(recording: Path) -> str:
@@ -55,8 +58,9 @@ HEADER = ["| arm | model | A | B | only A right | only B right | McNemar p | pus
 def compare(a: Path, b: Path, pooled: dict[str, list]) -> list[str]:
     """One pair's rows; each arm's paired answers are added to `pooled`."""
     first, second = summary(a), summary(b)
-    for key in ("setting", "seed", "episodes_per_class"):
-        if first["config"][key] != second["config"][key]:
+    # What draws the chains: the same values, the same chains (episode by episode id).
+    for key in ("setting", "seed", "episodes_per_class", "world", "lab", "severity"):
+        if first["config"].get(key) != second["config"].get(key):
             raise ValueError(f"{a} and {b} differ in {key}: not the same chains")
     rows = [f"{a} (A) against {b} (B)", "", *HEADER]
     for arm in sorted(set(first["arms"]) & set(second["arms"])):
@@ -86,11 +90,12 @@ def pooled_rows(pooled: dict[str, list]) -> list[str]:
     for arm, pairs in sorted(pooled.items()):
         truth, in_a, in_b = (np.concatenate([p[0][k] for p in pairs]) for k in range(3))
         test = paired_test(truth, in_a, in_b)
-        attempted = sum(r["episodes"] for _, r, _ in pairs)
-        right = [sum(r["estimate"]["accuracy_attempted"] * r["episodes"] for r in rs)
-                 for rs in zip(*[(ra, rb) for _, ra, rb in pairs], strict=True)]  # fmt: skip
+        # Both runs of a pair attempted the same episodes (same classes, episodes per class).
+        attempted = sum(ra["episodes"] for _, ra, _ in pairs)
+        right_a = sum(ra["estimate"]["accuracy_attempted"] * ra["episodes"] for _, ra, _ in pairs)
+        right_b = sum(rb["estimate"]["accuracy_attempted"] * rb["episodes"] for _, _, rb in pairs)
         rows.append(
-            f"| {arm} | | {100 * right[0] / attempted:.1f} % | {100 * right[1] / attempted:.1f} % "
+            f"| {arm} | | {100 * right_a / attempted:.1f} % | {100 * right_b / attempted:.1f} % "
             f"| {test['only_learned']} | {test['only_random']} | {test['p_value']:.2g} | | |"
         )
     return rows
