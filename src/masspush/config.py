@@ -169,7 +169,11 @@ class PhysicsConfig:
     init_joint_range: float = 0.75
     """Initial joint angles ~ U(-init_joint_range, init_joint_range), rad [code]."""
     root_xy_range: float = 0.1
-    """Initial root link centre ~ U(-r, r)^2 on the table, m; yaw ~ U(-pi, pi) [ours]."""
+    """Initial root link centre ~ U(-r, r)^2 on the table, m [ours]."""
+    root_yaw_range: Range = (-math.pi, math.pi)
+    """Initial yaw of the root link ~ U(root_yaw_range), rad: any heading by default [ours];
+    narrower for a chain put down by hand in a chosen direction (`masspush sim2real
+    --start-yaw`)."""
     link_friction: float = 0.5
     """Friction of link-link and link-pusher contacts (the table's mu governs link-table) [ours]."""
 
@@ -236,8 +240,9 @@ class PhysicsConfig:
         _check_range("length_range", self.length_range)
         if float(self.length_range[0]) <= 0:
             raise ValueError(f"length_range must be positive, got {self.length_range!r}")
+        _check_range("root_yaw_range", self.root_yaw_range)
         # Normalise ranges to float tuples so configs compare and serialise cleanly.
-        for name in ("mass_range", "friction_range", "length_range"):
+        for name in ("mass_range", "friction_range", "length_range", "root_yaw_range"):
             object.__setattr__(self, name, tuple(float(v) for v in getattr(self, name)))
         check_plausible("masses", self.mass_range)
         check_plausible("friction", self.friction_range)

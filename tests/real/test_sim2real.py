@@ -1,4 +1,5 @@
 import json
+import math
 
 import numpy as np
 import pytest
@@ -296,6 +297,33 @@ def test_the_lab_s_placement_puts_every_chain_where_it_says():
         assert ("Chains placed within 0.02 m of the origin" in text) is said
     with pytest.raises(ValueError, match="start_range must be in"):
         Sim2RealConfig(start_range=-0.1)
+
+
+def test_the_lab_s_heading_lays_every_chain_the_way_it_says():
+    from dataclasses import asdict
+
+    from masspush.models import model_and_policy
+    from masspush.real.sim2real import HAND_YAW_SCATTER, record_classes
+    from masspush.sim.chain import wrap_angle
+
+    predictor, _, policy = model_and_policy("rp", "real-ur10")
+    facing = math.pi / 2  # real-ur10's UR10 stands at -y, facing +y
+    for asked in (0.0, 90.0):
+        config = Sim2RealConfig(
+            world="training", episodes_per_class=2, start_range=0.02, start_yaw=asked,
+            classifier=ClassifierConfig(folds=2),
+        )  # fmt: skip
+        recording, _, _ = record_classes(config, predictor, policy, "t", progress=False)
+        yaws = np.array([e["observations"][0][2] for e in recording.episodes])
+        # within the hand's scatter of the heading asked, up to the tracker's noise
+        off = np.degrees(np.abs(wrap_angle(yaws - facing - math.radians(asked))))
+        assert off.max() < HAND_YAW_SCATTER + 3, (asked, off)
+    text = summary_markdown({"config": asdict(config), "arms": {}})
+    assert "first link at 90 degrees to the direction the robot faces" in text
+    with pytest.raises(ValueError, match="start_yaw must be in"):
+        Sim2RealConfig(start_yaw=270)
+    with pytest.raises(ValueError, match="start_yaw is relative to a stationary robot"):
+        Sim2RealConfig(setting="2link-1-10", start_yaw=0)
 
 
 @pytest.mark.slow

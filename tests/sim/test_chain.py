@@ -42,6 +42,22 @@ def test_sampling_is_within_ranges_and_deterministic(physics3):
     assert all(max(abs(np.array(c.joint_angles))) <= 0.75 for c in chains)
 
 
+def test_a_narrowed_heading_range_turns_the_chain_and_nothing_else(physics2):
+    from dataclasses import replace
+
+    laid = replace(physics2, root_yaw_range=(1.0, 1.2))
+    for seed in range(20):
+        free = sample_chain(physics2, np.random.default_rng(seed))
+        turned = sample_chain(laid, np.random.default_rng(seed))
+        assert 1.0 <= turned.root_pose[2] <= 1.2
+        # the same draws otherwise, so runs with and without it pair chain by chain
+        assert turned.masses == free.masses and turned.lengths == free.lengths
+        assert turned.joint_angles == free.joint_angles
+        assert tuple(turned.root_pose[:2]) == tuple(free.root_pose[:2])
+    with pytest.raises(ValueError, match="root_yaw_range is empty"):
+        PhysicsConfig(root_yaw_range=(1.0, 0.0))
+
+
 def test_pinning_one_parameter_leaves_the_other_draws_unchanged(physics2):
     free = sample_chain(physics2, np.random.default_rng(3))
     pinned = sample_chain(physics2, np.random.default_rng(3), {"masses": [0.2, 0.8]})

@@ -45,8 +45,9 @@ def _sim2real_options(p: argparse.ArgumentParser) -> None:
     from masspush.real.sim2real import Sim2RealConfig, Sim2RealJob
 
     add_fields(p, Sim2RealConfig, only=("setting", "episodes_per_class", "seed", "world",
-                                        "severity", "lab", "start_range", "segments",
-                                        "governor_fit", "density", "read_speeds"))  # fmt: skip
+                                        "severity", "lab", "start_range", "start_yaw",
+                                        "segments", "governor_fit", "density",
+                                        "read_speeds"))  # fmt: skip
     add_fields(p, ClassifierConfig, only=("folds", "runs"), prefix="classifier_")
     add_fields(p, Sim2RealJob)
     p.add_argument(

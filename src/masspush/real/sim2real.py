@@ -42,6 +42,9 @@ from masspush.sim.simulate import REACH_FAILURES
 if TYPE_CHECKING:
     from masspush.real.target_world import TargetWorld
 
+HAND_YAW_SCATTER = 5.0
+"""How far a chain laid by hand strays from the heading asked (`Sim2RealConfig.start_yaw`),
+degrees [ours: a chain aligned by eye with a line on the table]."""
 PAPER_ACCURACY = {"random": 40.74, "learned": 81.4}
 """The paper's real-robot accuracies, % (chance 20 %) [paper-details.md]."""
 ARMS = {"random": "rp", "learned": "tp+"}
@@ -76,6 +79,12 @@ class Sim2RealConfig:
     draws them), e.g. 0.02 for a chain put down by hand on a marked spot. None: the
     setting's own range (`real-ur10`: 0.2 m, over most of the stationary robot's workspace),
     as its models were trained."""
+    start_yaw: float | None = None
+    """Which way the lab lays each episode's chain, degrees: its first link's heading relative
+    to the direction the stationary robot faces (0: pointing straight away from the robot,
+    the chain lying along a radius of its workspace; 90: across, along the arc), within
+    5 degrees of it (`HAND_YAW_SCATTER`). None: any heading, as the setting draws them and
+    its models were trained. Only for a setting whose robot stands still."""
     segments: int = 1
     """Each episode runs the policy this many times in a row on the same chain, each run the
     setting's pushes (`masspush.real.robot.run_segments`); the classifier reads the runs as
@@ -124,6 +133,14 @@ class Sim2RealConfig:
         check_int("lab", self.lab, low=0, optional=True)
         if self.start_range is not None and not 0 <= self.start_range <= 1:
             raise ValueError(f"start_range must be in [0, 1] m, got {self.start_range!r}")
+        if self.start_yaw is not None:
+            if not -180 <= self.start_yaw <= 180:
+                raise ValueError(
+                    f"start_yaw must be in [-180, 180] degrees, got {self.start_yaw!r}"
+                )
+            if _robot_facing(self.setting) is None:
+                raise ValueError(f"start_yaw is relative to a stationary robot; the robot "
+                                 f"of setting {self.setting!r} follows the chain")  # fmt: skip
         if self.bayes:
             from masspush.bayes.filter import BayesConfig
 
@@ -260,6 +277,28 @@ def class_robot(
     return SimRobot(setting, seed=first, masses=masses, pushes=pushes, allow_out_of_range=True)
 
 
+def _robot_facing(setting_name: str) -> float | None:
+    """The yaw a setting's stationary robot faces, rad; None where its base follows the chain."""
+    from masspush.settings import get_setting
+    from masspush.sim.pushers import pusher_kind
+
+    workspace = pusher_kind(get_setting(setting_name).pusher).workspace
+    return None if workspace is None else workspace.base[2]
+
+
+def _placement(config: Sim2RealConfig) -> dict[str, Any]:
+    """The physics overrides that put each chain down where the lab does (start_range,
+    start_yaw); empty: where the setting draws it."""
+    out: dict[str, Any] = {}
+    if config.start_range is not None:
+        out["root_xy_range"] = config.start_range
+    if config.start_yaw is not None:
+        centre = _robot_facing(config.setting) + math.radians(config.start_yaw)
+        scatter = math.radians(HAND_YAW_SCATTER)
+        out["root_yaw_range"] = (centre - scatter, centre + scatter)
+    return out
+
+
 def _record_class(shared: tuple, c: int, advance=None) -> tuple[list, dict, dict]:
     """Class `c`'s episodes, one robot for them all (its randomness runs on from episode to
     episode): the recorded episodes, the failed pushes by reason, the tally."""
@@ -269,9 +308,9 @@ def _record_class(shared: tuple, c: int, advance=None) -> tuple[list, dict, dict
     config, predictor, policy, world, governor = shared
     label = list(PAPER_CLASSES)[c]
     setting = get_setting(config.setting)
-    if config.start_range is not None:  # the same setting (and models), placed by the lab
-        overrides = {**setting.overrides, "root_xy_range": config.start_range}
-        setting = replace(setting, overrides=overrides)
+    placement = _placement(config)
+    if placement:  # the same setting (and models), the chain put down by the lab
+        setting = replace(setting, overrides={**setting.overrides, **placement})
     pushes = setting.env_config().pushes
     robot = class_robot(
         setting, c, config.seed, world if config.world == "target" else None, config.lab,
@@ -332,6 +371,8 @@ def record_arm(
             robot_name += f", speed governor fitted to {config.governor_fit}"
         if config.start_range is not None:
             robot_name += f", chains placed within {config.start_range:g} m of the origin"
+        if config.start_yaw is not None:
+            robot_name += f", chains laid at {config.start_yaw:g} deg to the robot's facing"
         if config.segments != 1:
             robot_name += f", {config.segments} runs of the policy per episode"
         robot_name += "" if model == ARMS[arm] else f", {model}"
@@ -609,7 +650,10 @@ def summary_markdown(results: dict[str, Any]) -> str:
                  "The models read each push as commanded (--no-read-speeds).")
               + ("" if config.get("start_range") is None else
                  f" Chains placed within {config['start_range']:g} m of the origin "
-                 f"(--start-range)."), "",
+                 f"(--start-range).")
+              + ("" if config.get("start_yaw") is None else
+                 f" Chains laid with the first link at {config['start_yaw']:g} degrees to "
+                 f"the direction the robot faces (--start-yaw)."), "",
               "| policy | class | attempted | kept | lost the chain | failed otherwise "
               "| good pushes per episode |", "|---|---|---|---|---|---|---|"]  # fmt: skip
     for arm, r in results["arms"].items():

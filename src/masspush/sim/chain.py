@@ -150,7 +150,7 @@ def sample_chain(
             [
                 rng.uniform(-physics.root_xy_range, physics.root_xy_range),
                 rng.uniform(-physics.root_xy_range, physics.root_xy_range),
-                rng.uniform(-math.pi, math.pi),
+                rng.uniform(*physics.root_yaw_range),
             ]
         ),
     }
