@@ -38,8 +38,7 @@ from masspush.learn import density_for
 from masspush.real import (
     PAPER_CLASSES,
     ClassifierConfig,
-    TargetWorld,
-    class_robot,
+    class_episodes,
     cross_validate,
     fit_governor,
     start_pose_features,
@@ -69,40 +68,35 @@ def run(args, density) -> dict:
     done = json.loads(out.read_text())["episodes"] if out.exists() else {}
     bar, asked = tqdm(total=len(PAPER_CLASSES) * args.episodes, desc="filter"), []
     try:
-        for c, label in enumerate(PAPER_CLASSES):
-            # The chains of `masspush sim2real --world training --seed CHAINS` (or --lab L)
-            world = None if args.lab is None else TargetWorld()
-            robot = class_robot(setting, c, args.chains, world, args.lab, args.pushes)
-            for i in range(args.episodes):
-                pose = robot.start()
-                key = f"{label}-{i + 1:03d}"
-                asked.append(key)
-                if key in done:
-                    bar.update()
-                    continue
-                t0 = time.perf_counter()
-                filt.reset(np.asarray(pose.lengths, float), episode=c * 1000 + i)
-                policy.reset(c * 1000 + i)
-                start = np.asarray(pose.config, float)
-                estimates, lost = [], None
-                for _ in range(args.pushes):
-                    action = policy.act(start)
-                    report = robot.push(action)
-                    if report.failure is not None:
-                        lost = report.failure
-                        break
-                    observed = np.asarray(report.config, float)
-                    estimates.append(filt.update(start, action, observed).estimate.tolist())
-                    start = observed
-                done[key] = {
-                    "label": c, "estimates": estimates, "failure": lost,
-                    "start": np.asarray(pose.config, float).tolist(),
-                    "lengths": np.asarray(pose.lengths, float).tolist(),
-                    "seconds": time.perf_counter() - t0,
-                }  # fmt: skip
-                out.write_text(json.dumps({"config": run_config(args), "episodes": done}))
+        # The chains of `masspush sim2real --world training --seed CHAINS` (or --lab L)
+        chains = class_episodes(setting, args.episodes, args.chains, args.lab, args.pushes)
+        for c, i, key, robot, pose in chains:
+            asked.append(key)
+            if key in done:
                 bar.update()
-            robot.close()
+                continue
+            t0 = time.perf_counter()
+            filt.reset(np.asarray(pose.lengths, float), episode=c * 1000 + i)
+            policy.reset(c * 1000 + i)
+            start = np.asarray(pose.config, float)
+            estimates, lost = [], None
+            for _ in range(args.pushes):
+                action = policy.act(start)
+                report = robot.push(action)
+                if report.failure is not None:
+                    lost = report.failure
+                    break
+                observed = np.asarray(report.config, float)
+                estimates.append(filt.update(start, action, observed).estimate.tolist())
+                start = observed
+            done[key] = {
+                "label": c, "estimates": estimates, "failure": lost,
+                "start": np.asarray(pose.config, float).tolist(),
+                "lengths": np.asarray(pose.lengths, float).tolist(),
+                "seconds": time.perf_counter() - t0,
+            }  # fmt: skip
+            out.write_text(json.dumps({"config": run_config(args), "episodes": done}))
+            bar.update()
     finally:
         bar.close()
         filt.close()

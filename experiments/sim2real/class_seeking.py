@@ -34,8 +34,7 @@ from masspush.learn import density_for
 from masspush.real import (
     PAPER_CLASSES,
     ClassifierConfig,
-    TargetWorld,
-    class_robot,
+    class_episodes,
     cross_validate,
 )
 from masspush.settings import get_setting
@@ -68,49 +67,44 @@ def run(args, density=None) -> dict:
     done = json.loads(out.read_text())["episodes"] if out.exists() else {}
     bar, asked = tqdm(total=n * args.episodes, desc=args.policy), []
     try:
-        for c, label in enumerate(PAPER_CLASSES):
-            # The chains of `masspush sim2real --world training --seed CHAINS` (or --lab L)
-            world = None if args.lab is None else TargetWorld()
-            robot = class_robot(setting, c, args.chains, world, args.lab, args.pushes)
-            for i in range(args.episodes):
-                pose = robot.start()
-                key = f"{label}-{i + 1:03d}"
-                asked.append(key)
-                if key in done:
-                    bar.update()
-                    continue
-                t0 = time.perf_counter()
-                classes.reset(pose.lengths, episode=c * 1000 + i)
-                rng = np.random.default_rng([args.seed, c, i])
-                start, actions, lost = np.asarray(pose.config, float), [], None
-                poses = [start.tolist()]
-                for _ in range(args.pushes):
-                    cand = rng.uniform(-1, 1, (args.candidates, 2))
-                    cand = np.array([governor(a, start, pose.lengths) for a in cand], float)
-                    if args.policy == "random":  # the first candidate: a governed random push
-                        action = cand[0]
-                    else:
-                        scores = filt.expected_variance(start, cand, values=onehot)
-                        action = cand[int(np.argmin(scores))]
-                    report = robot.push(action)
-                    if report.failure is not None:
-                        lost = report.failure
-                        break
-                    observed = np.asarray(report.config, float)
-                    with warnings.catch_warnings():  # tempered quietly, as `replay` does
-                        warnings.simplefilter("ignore", bayes.UnexplainedObservationWarning)
-                        filt.update(start, action, observed)
-                    actions.append(action.tolist())
-                    poses.append(observed.tolist())
-                    start = observed
-                done[key] = {
-                    "label": c, "posterior": classes.weights().tolist(), "actions": actions,
-                    "poses": poses, "lengths": np.asarray(pose.lengths, float).tolist(),
-                    "failure": lost, "seconds": time.perf_counter() - t0,
-                }  # fmt: skip
-                out.write_text(json.dumps({"config": config, "episodes": done}))
+        # The chains of `masspush sim2real --world training --seed CHAINS` (or --lab L)
+        chains = class_episodes(setting, args.episodes, args.chains, args.lab, args.pushes)
+        for c, i, key, robot, pose in chains:
+            asked.append(key)
+            if key in done:
                 bar.update()
-            robot.close()
+                continue
+            t0 = time.perf_counter()
+            classes.reset(pose.lengths, episode=c * 1000 + i)
+            rng = np.random.default_rng([args.seed, c, i])
+            start, actions, lost = np.asarray(pose.config, float), [], None
+            poses = [start.tolist()]
+            for _ in range(args.pushes):
+                cand = rng.uniform(-1, 1, (args.candidates, 2))
+                cand = np.array([governor(a, start, pose.lengths) for a in cand], float)
+                if args.policy == "random":  # the first candidate: a governed random push
+                    action = cand[0]
+                else:
+                    scores = filt.expected_variance(start, cand, values=onehot)
+                    action = cand[int(np.argmin(scores))]
+                report = robot.push(action)
+                if report.failure is not None:
+                    lost = report.failure
+                    break
+                observed = np.asarray(report.config, float)
+                with warnings.catch_warnings():  # tempered quietly, as `replay` does
+                    warnings.simplefilter("ignore", bayes.UnexplainedObservationWarning)
+                    filt.update(start, action, observed)
+                actions.append(action.tolist())
+                poses.append(observed.tolist())
+                start = observed
+            done[key] = {
+                "label": c, "posterior": classes.weights().tolist(), "actions": actions,
+                "poses": poses, "lengths": np.asarray(pose.lengths, float).tolist(),
+                "failure": lost, "seconds": time.perf_counter() - t0,
+            }  # fmt: skip
+            out.write_text(json.dumps({"config": config, "episodes": done}))
+            bar.update()
     finally:
         bar.close()
         classes.close()

@@ -391,6 +391,29 @@ def test_each_class_s_robot_pushes_that_class_s_chains_in_the_world_asked():
         lab.close()
 
 
+def test_class_episodes_start_the_chains_of_a_run_in_its_order_and_close_each_robot(
+    monkeypatch,
+):
+    from masspush.real.backends import SimRobot
+    from masspush.real.sim2real import class_episodes, episode_id
+    from masspush.settings import get_setting
+
+    closed = []
+    close = SimRobot.close
+    monkeypatch.setattr(SimRobot, "close", lambda self: (closed.append(self), close(self)))
+    setting = get_setting("2link-1-10")
+    seen = list(class_episodes(setting, 2, seed=5, pushes=4))
+    assert [(e.c, e.i) for e in seen] == [(c, i) for c in range(len(PAPER_CLASSES)) for i in (0, 1)]
+    assert seen[2].id == episode_id(1, 0) == f"{list(PAPER_CLASSES)[1]}-001"
+    assert closed == [e.robot for e in seen[::2]]  # each class's robot, once, after its last
+    robot = class_robot(setting, 3, seed=5, pushes=4)
+    try:
+        for e in seen[6:8]:
+            np.testing.assert_allclose(e.pose.config, robot.start().config)
+    finally:
+        robot.close()
+
+
 def test_the_particle_filter_is_an_arm_scored_on_the_estimates_it_recorded(density_file, tmp_path):
     from dataclasses import replace
 

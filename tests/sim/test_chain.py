@@ -54,6 +54,12 @@ def test_a_narrowed_heading_range_turns_the_chain_and_nothing_else(physics2):
         assert turned.masses == free.masses and turned.lengths == free.lengths
         assert turned.joint_angles == free.joint_angles
         assert tuple(turned.root_pose[:2]) == tuple(free.root_pose[:2])
+    # about +-pi the heading is drawn wrapped, as the chain's pose is observed
+    across = replace(physics2, root_yaw_range=(3.0, 3.3))
+    yaws = [sample_chain(across, np.random.default_rng(s)).root_pose[2] for s in range(40)]
+    assert all(-math.pi <= y < math.pi for y in yaws)
+    assert min(np.cos(np.array(yaws) - 3.15)) >= math.cos(0.15) - 1e-12  # in the range, mod 2pi
+    assert min(yaws) < 0 < max(yaws)  # both sides of the cut
     with pytest.raises(ValueError, match="root_yaw_range is empty"):
         PhysicsConfig(root_yaw_range=(1.0, 0.0))
 

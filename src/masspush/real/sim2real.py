@@ -15,9 +15,10 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Iterator
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from tqdm import tqdm
@@ -277,6 +278,41 @@ def class_robot(
     return SimRobot(setting, seed=first, masses=masses, pushes=pushes, allow_out_of_range=True)
 
 
+class ClassEpisode(NamedTuple):
+    """One episode of `class_episodes`: its class, its number within the class, its id (as
+    in `masspush sim2real`'s recordings), the robot and the chain's first rest pose."""
+
+    c: int
+    i: int
+    id: str
+    robot: Any
+    pose: Any
+
+
+def episode_id(c: int, i: int) -> str:
+    """The id of class `c`'s episode `i` (from 0) in a recording: '0.160-0.160-001'."""
+    return f"{list(PAPER_CLASSES)[c]}-{i + 1:03d}"
+
+
+def class_episodes(
+    setting, per_class: int, seed: int = 0, lab: int | None = None, pushes: int | None = None
+) -> Iterator[ClassEpisode]:  # fmt: skip
+    """The chains of `masspush sim2real --seed SEED [--lab LAB]`, class by class, each robot
+    started on its next chain (whether or not the caller pushes it, so that a resumed run
+    sees the same chains), in the training world or with `lab` in that lab of the target
+    world; each class's robot is closed after its last episode."""
+    from masspush.real.target_world import TargetWorld
+
+    world = None if lab is None else TargetWorld()
+    for c in range(len(PAPER_CLASSES)):
+        robot = class_robot(setting, c, seed, world, lab, pushes)
+        try:
+            for i in range(per_class):
+                yield ClassEpisode(c, i, episode_id(c, i), robot, robot.start())
+        finally:
+            robot.close()
+
+
 def _robot_facing(setting_name: str) -> float | None:
     """The yaw a setting's stationary robot faces, rad; None where its base follows the chain."""
     from masspush.settings import get_setting
@@ -335,9 +371,7 @@ def _record_class(shared: tuple, c: int, advance=None) -> tuple[list, dict, dict
         if episode.estimates:
             tally["kept"] += 1
             episodes.append(
-                episode.recorded(
-                    id=f"{label}-{i + 1:03d}", label=label, masses=robot.truth["masses"]
-                )
+                episode.recorded(id=episode_id(c, i), label=label, masses=robot.truth["masses"])
             )
         if advance is not None:
             advance()

@@ -154,6 +154,9 @@ def sample_chain(
             ]
         ),
     }
+    yaw = drawn["root_pose"][2]
+    if not -math.pi <= yaw < math.pi:  # a range about +-pi: seen wrapped, drawn wrapped
+        drawn["root_pose"][2] = wrap_angle(yaw)
     for key, value in pinned.items():
         expected = {"masses": n, "lengths": n, "joint_angles": n - 1, "root_pose": 3}.get(key)
         if key == "friction":
