@@ -233,6 +233,31 @@ def test_a_stationary_robot_s_pushes_go_through_its_governor():
     assert len(governor.calls) == 3 and abs(action[0]) <= 0.05  # every candidate governed
 
 
+def test_the_best_push_the_robot_can_make_is_chosen():
+    def seeking(reachable=None) -> InfoSeekingPolicy:  # the same filter and draws each time
+        cfg = BayesConfig(particles=16, lookahead_particles=4, candidates=4)
+        filt = ParticleFilter(env_config(), cfg, seed=0)
+        filt.reset(np.array([0.12, 0.12]), episode=0)
+        policy = InfoSeekingPolicy(filt, 0)
+        policy.reachable = reachable
+        return policy
+
+    start = np.zeros(SETTING.physics().obs_dim)
+    best = seeking().act(start)
+    asked = []
+
+    def not_the_best(action, pose, lengths):
+        asked.append(action)
+        return not np.array_equal(action, best)
+
+    second = seeking(not_the_best).act(start)
+    # the best is asked first and refused, the next best pushed
+    assert len(asked) == 2 and np.array_equal(asked[0], best)
+    assert not np.array_equal(second, best) and np.array_equal(second, asked[1])
+    never = seeking(lambda action, pose, lengths: False).act(start)
+    assert np.array_equal(never, best)  # none it can make: the best, as before
+
+
 def test_a_chain_still_creeping_at_the_settle_cap_is_taken_where_it_is():
     short = ParticleFilter(env_config(), BayesConfig(particles=8, settle_cap=0.02), seed=0)
     full = ParticleFilter(env_config(), BayesConfig(particles=8, settle_cap=10.0), seed=0)

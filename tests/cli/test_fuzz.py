@@ -65,7 +65,7 @@ CASES: dict[str, list[list[str]]] = {
     "sim2real": [["--episodes-per-class", "0"], ["--severity", "2"], ["--world", "moon"],
                  ["--lab", "-1"], ["--segments", "0"], ["--setting", "nope"],
                  ["--start-range", "2"], ["--start-yaw", "400"],
-                 ["--setting", "2link-1-10", "--start-yaw", "0"],
+                 ["--setting", "2link-1-10", "--start-yaw", "0"], ["--check-reach"],
                  ["--density", "MISSING"],
                  ["--learned-model", "bayes", "--density", "MISSING"],
                  ["--learned-model", "bayes", "--density", "DIR"],

@@ -447,6 +447,35 @@ def test_the_particle_filter_is_an_arm_scored_on_the_estimates_it_recorded(densi
         run_sim2real(config, tmp_path, progress=False)
 
 
+@pytest.mark.slow
+def test_a_filter_arm_that_checks_reach_asks_before_every_push(monkeypatch, tmp_path):
+    from dataclasses import replace
+
+    from masspush.sim.reach_check import ReachCheck
+
+    asked = []
+    check = ReachCheck.__call__
+    monkeypatch.setattr(ReachCheck, "__call__",
+                        lambda self, *a: (asked.append(a), check(self, *a))[1])  # fmt: skip
+    config = replace(CONFIG, setting="real-ur10", world="training", check_reach=True,
+                     models={"random": "rp", "learned": "bayes"},
+                     bayes={"particles": 64, "lookahead_particles": 8})  # fmt: skip
+    run_sim2real(config, tmp_path, progress=False)
+    recording = read_recording(tmp_path / "learned.jsonl")
+    assert "pushes checked for reach" in recording.robot
+    pushes = sum(len(e["actions"]) for e in recording.episodes)
+    assert len(asked) >= pushes  # every push asked about (more where the best was refused)
+    # each asked with the pose the push starts from, as the robot saw it
+    first = recording.episodes[0]
+    np.testing.assert_allclose(asked[0][1], first["observations"][0], atol=1e-6)
+    assert "(--check-reach)" in (tmp_path / "summary.md").read_text()
+    with pytest.raises(ValueError, match="check_reach is the particle filter's"):
+        Sim2RealConfig(check_reach=True)
+    with pytest.raises(ValueError, match="check_reach is for a stationary robot"):
+        Sim2RealConfig(setting="2link-1-10", check_reach=True,
+                       models={"random": "rp", "learned": "bayes"})  # fmt: skip
+
+
 def test_a_density_is_checked_before_any_episode(density_file, tmp_path):
     with pytest.raises(ValueError, match="no arm's model is bayes"):
         Sim2RealConfig(setting="2link-1-10", density=str(density_file))

@@ -590,6 +590,10 @@ class InfoSeekingPolicy:
         """A stationary robot's speed governor (`masspush.sim.reach_governor`): each
         candidate is compared as the robot would make it, slowed to keep the chain in reach."""
         self.rng = np.random.default_rng([seed, 37])
+        self.reachable = None
+        """`reachable(action, start, lengths)`, whether the robot can make a push
+        (`masspush.sim.reach_check`): the best candidate it can make is pushed (the best of
+        all where it can make none). None: the best, unasked."""
 
     def reset(self, episode: int) -> None:
         """Restart the candidates' randomness from the episode's seed (`ParticleFilter.reset`)."""
@@ -603,6 +607,10 @@ class InfoSeekingPolicy:
             lengths = self.filter.lengths
             candidates = np.array([self.governor(a, start, lengths) for a in candidates], float)
         scores = self.filter.expected_variance(start, candidates)
+        if self.reachable is not None:
+            for i in np.argsort(scores, kind="stable"):
+                if self.reachable(candidates[i], start, self.filter.lengths):
+                    return candidates[i]
         return candidates[int(np.argmin(scores))]
 
 

@@ -46,7 +46,7 @@ def _sim2real_options(p: argparse.ArgumentParser) -> None:
 
     add_fields(p, Sim2RealConfig, only=("setting", "episodes_per_class", "seed", "world",
                                         "severity", "lab", "start_range", "start_yaw",
-                                        "segments", "governor_fit", "density",
+                                        "segments", "governor_fit", "density", "check_reach",
                                         "read_speeds"))  # fmt: skip
     add_fields(p, ClassifierConfig, only=("folds", "runs"), prefix="classifier_")
     add_fields(p, Sim2RealJob)

@@ -65,6 +65,17 @@ class FilterArm:
         if self.seeking is not None:
             self.seeking.governor = governor
 
+    @property
+    def reach_check(self):
+        """Whether the robot can make a push (`masspush.sim.reach_check.ReachCheck`), asked
+        of the candidates best first; None: the best is pushed unasked."""
+        return None if self.seeking is None else self.seeking.reachable
+
+    @reach_check.setter
+    def reach_check(self, check) -> None:
+        if self.seeking is not None:
+            self.seeking.reachable = check
+
     def reset(self, seeds: np.ndarray) -> None:
         if len(seeds) != 1:
             raise ValueError(f"the filter runs one episode at a time, got {len(seeds)} seeds")

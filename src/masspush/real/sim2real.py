@@ -86,6 +86,12 @@ class Sim2RealConfig:
     the chain lying along a radius of its workspace; 90: across, along the arc), within
     5 degrees of it (`HAND_YAW_SCATTER`). None: any heading, as the setting draws them and
     its models were trained. Only for a setting whose robot stands still."""
+    check_reach: bool = False
+    """The particle-filter arm asks the robot's planner whether it can make a push before
+    choosing it (`masspush.sim.reach_check`), as a robot that knows its inverse kinematics
+    would, and pushes the best candidate it can make; off: the best candidate, unasked, as
+    every figure before 2026-12-05 was measured. Only for a filter arm on a stationary
+    robot."""
     segments: int = 1
     """Each episode runs the policy this many times in a row on the same chain, each run the
     setting's pushes (`masspush.real.robot.run_segments`); the classifier reads the runs as
@@ -142,6 +148,12 @@ class Sim2RealConfig:
             if _robot_facing(self.setting) is None:
                 raise ValueError(f"start_yaw is relative to a stationary robot; the robot "
                                  f"of setting {self.setting!r} follows the chain")  # fmt: skip
+        if self.check_reach:
+            if not filtered:
+                raise ValueError("check_reach is the particle filter's; no arm's model is bayes")
+            if _robot_facing(self.setting) is None:
+                raise ValueError(f"check_reach is for a stationary robot; the robot of "
+                                 f"setting {self.setting!r} follows the chain")  # fmt: skip
         if self.bayes:
             from masspush.bayes.filter import BayesConfig
 
@@ -356,6 +368,10 @@ def _record_class(shared: tuple, c: int, advance=None) -> tuple[list, dict, dict
         robot.governor = governor
     if isinstance(policy, FilterArm):  # its candidates compared as this robot makes them
         policy.governor = robot.governor
+        if config.check_reach:  # by the robot's planner, which knows the setting's chain
+            from masspush.sim.reach_check import reach_check
+
+            policy.reach_check = reach_check(setting.pusher, setting.physics())
     read_speed = _speed_reader(config)
     episodes, failures = [], {}
     tally = {k: 0 for k in ("attempted", "kept", "lost", "failed")}
@@ -414,6 +430,8 @@ def record_arm(
             robot_name += f" weighing pushes with {Path(config.density).name}"
         if model in BAYES_MODELS and config.bayes:
             robot_name += f" ({', '.join(f'{k}={v}' for k, v in sorted(config.bayes.items()))})"
+        if model in BAYES_MODELS and config.check_reach:
+            robot_name += ", pushes checked for reach"
         if model in BAYES_MODELS:  # its recorded estimates depend on it
             robot_name += ", speeds read" if config.read_speeds else ", speeds not read"
     if path.exists() and counts.exists():
@@ -687,7 +705,9 @@ def summary_markdown(results: dict[str, Any]) -> str:
                  f"(--start-range).")
               + ("" if config.get("start_yaw") is None else
                  f" Chains laid with the first link at {config['start_yaw']:g} degrees to "
-                 f"the direction the robot faces (--start-yaw)."), "",
+                 f"the direction the robot faces (--start-yaw).")
+              + (" The filter arm pushed the best candidate the arm could reach "
+                 "(--check-reach)." if config.get("check_reach") else ""), "",
               "| policy | class | attempted | kept | lost the chain | failed otherwise "
               "| good pushes per episode |", "|---|---|---|---|---|---|---|"]  # fmt: skip
     for arm, r in results["arms"].items():
