@@ -11,14 +11,18 @@ weighs, the tracker's bias taken off both rest poses; and (`executed`, `executed
 with the filter told each push as the robot executed it, noise included (speed and contact
 point, or the speed alone: what a robot that reports its executed speed could give), or
 (`read`) each push read at the speed the robot reports, as `masspush sim2real` reads it.
-Same chains and seeds in every row (paired); only the learned arm is run. `--density` weighs
-the pushes with another push density, e.g. one conditioned on the executed pushes
-(`masspush train-density --actions executed`).
+Group `com_offset` puts back only the objects' centre-of-mass offsets (each class's object
+its own, `Lab.com_offsets`): the one difference that is not the same for all five objects of
+a lab. Same chains and seeds in every row (paired); only the learned arm is run. `--density`
+weighs the pushes with another push density, e.g. one conditioned on the executed pushes
+(`masspush train-density --actions executed`); `--segments 8` runs 8 runs of 2 pushes per
+episode and prints the accuracy after each number of runs.
 
     python experiments/sim2real/filter_gap_parts.py [--lab 5] [--groups none,all,told,...]
-        [--density FILE] [--out results/sim2real-filter-gap-parts]
+        [--density FILE] [--segments N] [--out results/sim2real-filter-gap-parts]
 
-Recordings are kept in `--out/<lab>/<group>.jsonl` and reused; prints one row per group.
+Recordings are kept in `--out/<lab>/<group>.jsonl` (`<group>-<N>runs.jsonl` with
+`--segments`) and reused; prints one row per group.
 """
 
 import argparse
@@ -78,24 +82,31 @@ def executed_patches(components: list[int]):
             mock.patch.object(FilterArm, "predict", told)]  # fmt: skip
 
 
+OBJECT_GROUPS = {"com_offset": ("com_offset",)}
+"""Groups of this experiment only: knobs of one kind that differ object by object."""
+
+
 def main() -> None:
     sys.path.insert(0, str(Path(__file__).parent))  # the sibling experiment's groups
-    from target_world_ablation import GROUPS, world_without
+    from target_world_ablation import GROUPS, TRAINING_KNOBS, world_without
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--lab", type=int, default=5)
     told = ("told", "executed", "executed-speed", "read")
     parser.add_argument("--groups", default=",".join(["none", "all", *told, *list(GROUPS)[1:]]))
     parser.add_argument("--density", default=None, help="push density file (default: shipped)")
+    parser.add_argument("--segments", type=int, default=1, help="runs of 2 pushes per episode")
     parser.add_argument("--out", default="results/sim2real-filter-gap-parts")
     args = parser.parse_args()
     groups = args.groups.split(",")
-    known = ["all", *told, *GROUPS]
+    known = ["all", *told, *GROUPS, *OBJECT_GROUPS]
     unknown = set(groups) - set(known)
     if unknown:
         parser.error(f"--groups: unknown {sorted(unknown)}; known: {', '.join(known)}")
     if args.lab < 0:
         parser.error("--lab must be >= 0")
+    if args.segments < 1:
+        parser.error("--segments must be >= 1")
     out = Path(args.out) / str(args.lab)
     try:  # before any episode: a bad --out is said at once, not after the first group
         out.mkdir(parents=True, exist_ok=True)
@@ -106,16 +117,20 @@ def main() -> None:
     arms = {"random": "rp", "learned": "bayes"}
     try:  # a bad --density is said before any episode
         config = Sim2RealConfig(setting=SETTING, lab=args.lab, read_speeds=False, models=arms,
-                                density=args.density)  # fmt: skip
+                                density=args.density, segments=args.segments)  # fmt: skip
     except ValueError as err:
         parser.error(str(err))
     weighed = "" if args.density is None else f", density {Path(args.density).name}"
     physics = TargetWorld().physics(get_setting(SETTING).physics())
     print("| lab | put back to training | accuracy (estimate) | chains lost |")
     print("|---|---|---|---|")
+    runs = "" if args.segments == 1 else f"-{args.segments}runs"
     for group in groups:
-        world = TargetWorld() if group in told else world_without(group)
-        path = out / f"{group}.jsonl"
+        if group in OBJECT_GROUPS:
+            world = replace(TargetWorld(), **{k: TRAINING_KNOBS[k] for k in OBJECT_GROUPS[group]})
+        else:
+            world = TargetWorld() if group in told else world_without(group)
+        path = out / f"{group}{runs}.jsonl"
         name = f"masspush target world, lab {args.lab}, {group} put back, bayes{weighed}"
         run = replace(config, read_speeds=group == "read")
         if group == "read":
@@ -139,9 +154,12 @@ def main() -> None:
                               robot_name=name)  # fmt: skip
         scores = score_arm(run, "learned", path)
         lost = sum(c["lost"] for c in kept["by_class"].values())
-        (out / f"{group}.json").write_text(json.dumps({"kept": kept, "scores": scores}) + "\n")
-        print(f"| {args.lab} | {group} | {100 * scores['estimate']['accuracy']:.1f} % | {lost} |",
-              flush=True)  # fmt: skip
+        result = json.dumps({"kept": kept, "scores": scores})
+        (out / f"{group}{runs}.json").write_text(result + "\n")
+        accuracy = f"{100 * scores['estimate']['accuracy']:.1f} %"
+        if "by_runs" in scores:  # after 1, 2, 4, ... runs
+            accuracy = " / ".join(f"{100 * r['estimate']:.1f}" for r in scores["by_runs"]) + " %"
+        print(f"| {args.lab} | {group} | {accuracy} | {lost} |", flush=True)
 
 
 if __name__ == "__main__":

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from masspush.data import read_recording
-from masspush.real import paired_test
+from masspush.real import paired_answers, paired_test
 
 
 def summary(run: Path) -> dict:
@@ -65,13 +65,7 @@ def compare(a: Path, b: Path, pooled: dict[str, list]) -> list[str]:
     rows = [f"{a} (A) against {b} (B)", "", *HEADER]
     for arm in sorted(set(first["arms"]) & set(second["arms"])):
         ra, rb = first["arms"][arm], second["arms"][arm]
-        both = sorted(set(ra["ids"]) & set(rb["ids"]))
-        at_a, at_b = ([r["ids"].index(i) for i in both] for r in (ra, rb))
-        answers = (
-            np.array(ra["labels"])[at_a],
-            np.array(ra["estimate"]["predicted"])[at_a],
-            np.array(rb["estimate"]["predicted"])[at_b],
-        )
+        answers = paired_answers(ra, rb)
         pooled.setdefault(arm, []).append((answers, ra, rb))
         test = paired_test(*answers)
         rows.append(

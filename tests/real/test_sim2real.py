@@ -9,6 +9,7 @@ from masspush.real.finetune import PAPER_CLASSES, ClassifierConfig
 from masspush.real.sim2real import (
     Sim2RealConfig,
     class_robot,
+    paired_answers,
     paired_test,
     plot_accuracy_by_pushes,
     run_counts,
@@ -206,6 +207,15 @@ def test_paired_test_is_the_exact_mcnemar_test():
     # 3 against 1: two-sided tail 2 * (1 + 4) / 16.
     mixed = paired_test(truth[:4], np.array([0, 0, 0, 1]), np.array([1, 1, 1, 0]))
     assert mixed["p_value"] == pytest.approx(10 / 16)
+
+
+def test_paired_answers_pair_by_episode_id_on_the_episodes_both_kept():
+    first = {"ids": ["a", "b", "c"], "labels": [0, 1, 2], "estimate": {"predicted": [0, 1, 1]}}
+    # Another order, "a" lost, "d" only here.
+    second = {"ids": ["d", "c", "b"], "labels": [3, 2, 1], "estimate": {"predicted": [3, 2, 0]}}
+    truth, a, b = paired_answers(first, second)
+    assert truth.tolist() == [1, 2]  # ids b, c
+    assert a.tolist() == [1, 1] and b.tolist() == [0, 2]
 
 
 @pytest.mark.slow

@@ -27,7 +27,7 @@ EXPORTS = {
                      "scaled_world"),
     "sim2real": ("ARMS", "FEATURE_KINDS", "FEATURE_NAMES", "Sim2RealConfig", "Sim2RealJob",
                  "arm_feature_kinds", "class_episodes", "class_robot", "episode_id",
-                 "paired_test",
+                 "paired_answers", "paired_test",
                  "plot_accuracy_by_pushes", "record_arm", "record_classes", "run_sim2real",
                  "score_arm", "sim2real"),
     "randomise": ("RandomiseConfig", "RandomiseRun", "randomise", "run_randomised"),

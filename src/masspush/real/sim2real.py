@@ -585,14 +585,8 @@ def run_sim2real(
         results["arms"][arm] = {**collected, **scores}
     random, learned = results["arms"]["random"], results["arms"]["learned"]
     # The same chains, so a paired comparison, on the episodes both arms kept.
-    both = sorted(set(random["ids"]) & set(learned["ids"]))
-    at = {arm: [r["ids"].index(i) for i in both] for arm, r in results["arms"].items()}
     results["paired"] = {
-        kind: paired_test(
-            np.array(learned["labels"])[at["learned"]],
-            np.array(learned[kind]["predicted"])[at["learned"]],
-            np.array(random[kind]["predicted"])[at["random"]],
-        )
+        kind: paired_test(*paired_answers(learned, random, kind))
         for kind in FEATURE_KINDS
         if kind in random["kinds"] and kind in learned["kinds"]
     }
@@ -601,6 +595,21 @@ def run_sim2real(
     if config.segments > 1:
         plot_accuracy_by_pushes({"": results}, out / "accuracy-by-pushes.png")
     return results
+
+
+def paired_answers(
+    first: dict[str, Any], second: dict[str, Any], kind: str = "estimate"
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(true labels, `first`'s predictions, `second`'s) on the episodes both kept, paired by
+    episode id: two arms' scores (`score_arm`) of one run, or one arm's of two runs that
+    pushed the same chains. What `paired_test` reads."""
+    both = sorted(set(first["ids"]) & set(second["ids"]))
+    at_first, at_second = ([r["ids"].index(i) for i in both] for r in (first, second))
+    return (
+        np.array(first["labels"])[at_first],
+        np.array(first[kind]["predicted"])[at_first],
+        np.array(second[kind]["predicted"])[at_second],
+    )
 
 
 def paired_test(truth: np.ndarray, learned: np.ndarray, random: np.ndarray) -> dict[str, Any]:
