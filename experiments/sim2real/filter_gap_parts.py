@@ -88,7 +88,7 @@ OBJECT_GROUPS = {"com_offset": ("com_offset",)}
 
 def main() -> None:
     sys.path.insert(0, str(Path(__file__).parent))  # the sibling experiment's groups
-    from target_world_ablation import GROUPS, TRAINING_KNOBS, world_without
+    from target_world_ablation import GROUPS, world_without
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--lab", type=int, default=5)
@@ -126,10 +126,7 @@ def main() -> None:
     print("|---|---|---|---|")
     runs = "" if args.segments == 1 else f"-{args.segments}runs"
     for group in groups:
-        if group in OBJECT_GROUPS:
-            world = replace(TargetWorld(), **{k: TRAINING_KNOBS[k] for k in OBJECT_GROUPS[group]})
-        else:
-            world = TargetWorld() if group in told else world_without(group)
+        world = TargetWorld() if group in told else world_without(group, GROUPS | OBJECT_GROUPS)
         path = out / f"{group}{runs}.jsonl"
         name = f"masspush target world, lab {args.lab}, {group} put back, bayes{weighed}"
         run = replace(config, read_speeds=group == "read")

@@ -43,10 +43,12 @@ GROUPS = {
 CLASSES = ("0.160-0.160", "0.064-0.192", "0.064-0.256")
 
 
-def world_without(group: str) -> TargetWorld:
+def world_without(group: str, groups: dict | None = None) -> TargetWorld:
+    """The target world with the knobs of `group` (a key of `groups`, default `GROUPS`, or
+    "all") put back to the training world's values."""
     if group == "all":
         return scaled_world(0)
-    return replace(TargetWorld(), **{k: TRAINING_KNOBS[k] for k in GROUPS[group]})
+    return replace(TargetWorld(), **{k: TRAINING_KNOBS[k] for k in (groups or GROUPS)[group]})
 
 
 def main() -> None:
