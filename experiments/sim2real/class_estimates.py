@@ -29,10 +29,10 @@ PAIRS = (("0.064-0.192", "0.064-0.256"), ("0.256-0.064", "0.192-0.064"))
 """The paper's classes whose first link's shares lie 0.05 apart."""
 
 
-def first_shares(path: Path, pushes: int | None) -> dict[str, np.ndarray]:
+def first_shares(recording, path: Path, pushes: int | None) -> dict[str, np.ndarray]:
     """Per class label, the first link's estimated share after `pushes` pushes (None: all
-    the episode has; fewer where it has fewer) of each episode with an estimate."""
-    recording = read_recording(path)
+    the episode has; fewer where it has fewer) of each episode of `recording` (read from
+    `path`) with an estimate."""
     shares: dict[str, list[float]] = {}
     for episode in recording.episodes:
         estimates = episode.get("estimates")
@@ -46,7 +46,8 @@ def first_shares(path: Path, pushes: int | None) -> dict[str, np.ndarray]:
 
 
 def rows(path: Path, pushes: int) -> list[str]:
-    early, final = first_shares(path, pushes), first_shares(path, None)
+    recording = read_recording(path)
+    early, final = first_shares(recording, path, pushes), first_shares(recording, path, None)
     out = [str(path), "", f"| class | true share | after {pushes} pushes | after all |",
            "|---|---|---|---|"]  # fmt: skip
     for label in sorted(final):
