@@ -44,7 +44,14 @@ def main() -> None:
         parser.error(f"--resample: push counts separated by commas, got {args.resample!r}")
     try:
         physics = get_setting(args.setting).physics()
-        parts = [push_slides(*pushes_of(source), physics) for source in args.source]
+        parts = []
+        for source in args.source:
+            pushes = pushes_of(source)
+            links = np.asarray(pushes[3]).shape[-1]
+            if len(pushes[3]) and links != physics.n_links:  # read with the wrong chain
+                raise ValueError(f"{source}: {links}-link chains; --setting {args.setting} "
+                                 f"has {physics.n_links}")  # fmt: skip
+            parts.append(push_slides(*pushes, physics))
         speed, along, across = (np.concatenate(v) for v in zip(*parts, strict=True))
         bounds = fit_slides(speed, along, across, args.quantile)
     except (ValueError, OSError) as err:
