@@ -18,6 +18,7 @@ from masspush.bayes.filter import (
     SURROGATE_LIKELIHOOD_POWER,
     BayesConfig,
     InfoSeekingPolicy,
+    Lookahead,
     ParticleFilter,
     UnexplainedObservationWarning,
     _reflect,
@@ -258,6 +259,60 @@ def test_the_best_push_the_robot_can_make_is_chosen():
     assert np.array_equal(never, best)  # none it can make: the best, as before
 
 
+def test_the_lookahead_keeps_where_each_candidate_s_outcomes_left_the_chain():
+    start, pushes = np.zeros(4), np.array([[0.02, 0.0], [0.8, 0.6]])
+
+    def fresh():
+        filt = ParticleFilter(env_config(), SMALL, seed=3)
+        filt.reset(np.array([0.12, 0.12]), episode=0)
+        return filt
+
+    ahead = fresh().lookahead(start, pushes)
+    np.testing.assert_allclose(ahead.variance, fresh().expected_variance(start, pushes))
+    assert len(ahead.outcomes) == 2 and ahead.outcomes[0].shape == (SMALL.lookahead_particles, 4)
+    assert ahead.prior_variance >= ahead.variance.max() - 1e-12
+    # a push that misses leaves the chain about where it was; a hard one carries it away
+    moved = [np.nanmean(np.hypot(o[:, 0], o[:, 1])) for o in ahead.outcomes]
+    assert moved[0] < 0.05 < moved[1]
+
+
+def test_a_reach_weight_prefers_pushes_that_leave_the_chain_with_room():
+    """Two candidates that teach alike, one landing near the far edge of the stationary
+    UR10's reach, one in its middle: without a reach weight the (slightly) better teacher
+    is pushed, with one the push that leaves room."""
+    from masspush.sim.pushers import reach_governor
+
+    real = reach_governor("ur10-stationary", get_setting("real-ur10").physics())
+    middle, edge = np.zeros(4), np.array([0.0, 0.25, 0.0, 0.0])  # 0.7 and 0.95 m out
+
+    class Unslowed:  # the workspace's governor, without slowing the candidates
+        workspace, physics = real.workspace, real.physics
+
+        def __call__(self, action, config, lengths):
+            return np.asarray(action)
+
+    def chosen(weight: float) -> tuple[np.ndarray, np.ndarray]:
+        filt = ParticleFilter(env_config(), replace(SMALL, candidates=2, reach_weight=weight))
+        filt.reset(np.array([0.12, 0.12]), episode=0)
+        asked = []
+
+        def lookahead(start, actions, values=None):
+            asked.append(actions)
+            outcomes = [np.tile(edge, (4, 1)), np.tile(middle, (4, 1))]
+            return Lookahead(np.array([0.010, 0.011]), 0.02, outcomes)
+
+        filt.lookahead = lookahead
+        policy = InfoSeekingPolicy(filt, 0, Unslowed())
+        return policy.act(middle), asked[0]
+
+    assert real.workspace.headroom(edge, [0.12, 0.12], 0.005) < 0.1
+    assert real.workspace.headroom(middle, [0.12, 0.12], 0.005) > 0.2
+    action, candidates = chosen(0.0)
+    assert np.array_equal(action, candidates[0])
+    action, candidates = chosen(0.5)
+    assert np.array_equal(action, candidates[1])
+
+
 def test_a_chain_still_creeping_at_the_settle_cap_is_taken_where_it_is():
     short = ParticleFilter(env_config(), BayesConfig(particles=8, settle_cap=0.02), seed=0)
     full = ParticleFilter(env_config(), BayesConfig(particles=8, settle_cap=10.0), seed=0)
@@ -293,6 +348,8 @@ def test_bad_configs_are_refused():
         BayesConfig(likelihood_power=1.5)
     with pytest.raises(ValueError, match="settle_cap"):
         BayesConfig(settle_cap=0)
+    with pytest.raises(ValueError, match="reach_weight"):
+        BayesConfig(reach_weight=-0.1)
 
 
 def test_longer_chains_get_a_wider_likelihood_and_fewer_candidates_by_default():
@@ -303,11 +360,11 @@ def test_longer_chains_get_a_wider_likelihood_and_fewer_candidates_by_default():
         slack[links] = filt.motion_slack
         power[links] = filt.likelihood_power
 
-        def record(start, actions, n=links):
+        def record(start, actions, values=None, n=links):
             seen[n] = len(actions)
-            return np.zeros(len(actions))
+            return Lookahead(np.zeros(len(actions)), 0.0, [np.zeros((4, 4))] * len(actions))
 
-        filt.expected_variance = record
+        filt.lookahead = record
         InfoSeekingPolicy(filt).act(np.zeros(cfg.physics.obs_dim))
     assert seen == {2: 8, 3: 6} and slack == {2: 0.05, 3: 0.1} and power == {2: 1.0, 3: 0.6}
 

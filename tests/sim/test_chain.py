@@ -177,3 +177,13 @@ def test_a_reused_scene_is_the_compiled_scene_to_the_last_bit(n_links, scene):
     # A field that differs is found: the check can fail.
     other = compile_scene(chains[0], physics, add, reuse=f"test-{scene}")
     assert "stat.meaninertia" in _model_differences(other, compiled)
+
+
+def test_link_poses_of_a_batch_are_each_configuration_s(rng):
+    lengths, gap = (0.1, 0.15, 0.12), 0.005
+    configs = rng.uniform(-1, 1, size=(4, 3, 5))
+    centres, headings = link_poses(configs, lengths, gap)
+    assert centres.shape == (4, 3, 3, 2) and headings.shape == (4, 3, 3)
+    one_centres, one_headings = link_poses(configs[2, 1], lengths, gap)
+    np.testing.assert_allclose(centres[2, 1], one_centres)
+    np.testing.assert_allclose(headings[2, 1], one_headings)

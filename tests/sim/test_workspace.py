@@ -162,3 +162,20 @@ def test_a_governor_with_a_base_slide_keeps_a_slow_push_off_the_edge():
     assert GOVERNOR.safe(slow, config, CHAIN_LENGTHS)
     based = ReachGovernor(dataclasses.replace(WS, slide_base=0.25), PhysicsConfig())
     assert not based.safe(slow, config, CHAIN_LENGTHS)
+
+
+def test_headroom_is_the_nearest_centre_s_distance_to_the_boundary():
+    # A straight chain along +x at the table origin: its second centre (0.125, 0) lies
+    # 0.711 m out; the nearer side of the reach is the outer arc, 0.289 m away.
+    room = WS.headroom(np.zeros(4), LENGTHS, GAP)
+    centres, _ = link_poses(np.zeros(4), LENGTHS, GAP)
+    r, _ = WS.polar(centres)
+    assert room == pytest.approx(1.0 - r.max())
+    # Nearer the outer arc, less room; beyond it, negative; in a batch, each its own.
+    configs = np.array([[0.0, y, 0.0, 0.0] for y in (0.0, 0.2, 0.35, -0.35)])
+    rooms = WS.headroom(configs, LENGTHS, GAP)
+    assert rooms.shape == (4,) and rooms[1] < rooms[0] and rooms[2] < 0 and rooms[3] < 0
+    for config, value in zip(configs, rooms, strict=True):
+        assert bool(value >= 0) is WS.holds(config, LENGTHS, GAP)
+    # Beside the base, past the side line: negative too.
+    assert WS.headroom(np.array([-0.8, -0.6, 0.0, 0.0]), LENGTHS, GAP) < 0

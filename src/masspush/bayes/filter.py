@@ -44,7 +44,7 @@ from __future__ import annotations
 import warnings
 from dataclasses import asdict, dataclass, replace
 from statistics import NormalDist
-from typing import Any, Protocol
+from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 
@@ -152,6 +152,15 @@ class BayesConfig:
     density: str | None = None
     """With likelihood="learned", the push density's model file (`masspush train-density`);
     None: the setting's shipped one (`masspush evaluate` finds it)."""
+    reach_weight: float = 0.0
+    """Where a stationary robot's speed governor slows pushes near the edge of its reach,
+    how much the information-seeking policy also values leaving the chain where the next
+    push can be fast: a candidate's score (expected posterior variance) is lowered by this
+    times the variance before the push times the expected headroom of the rest poses its
+    lookahead outcomes drew, as a fraction of the governor's longest slide
+    (`Workspace.headroom`, -1 outside the reach up to 1 at a full slide's room). 0: the
+    push that teaches most now, wherever it leaves the chain [ours; docs/notebook/
+    2026-12-05-headroom.md]."""
     tail_dof: float | None = 4.0
     """Degrees of freedom of a Student-t likelihood per component; None: Gaussian. Heavy
     tails keep the few outcomes the model reproduces badly (an arm's contact is not the
@@ -168,6 +177,8 @@ class BayesConfig:
             raise ValueError("move_sweeps must be >= 0 and move_scale > 0")
         if not 0 < self.max_push <= 1:
             raise ValueError(f"max_push must be in (0, 1], got {self.max_push}")
+        if not self.reach_weight >= 0:
+            raise ValueError(f"reach_weight must be >= 0, got {self.reach_weight}")
         if self.tail_dof is not None and self.tail_dof <= 0:
             raise ValueError(f"tail_dof must be > 0 or None, got {self.tail_dof}")
         if self.likelihood_power is not None and not 0 < self.likelihood_power <= 1:
@@ -527,6 +538,13 @@ class ParticleFilter:
         `values` (particles, q), where given, are scored in place of the mass distribution:
         one-hot class labels, for instance, make the score the expected Gini impurity of
         the class posterior (how likely a class drawn from it is wrong)."""
+        return self.lookahead(start, actions, values).variance
+
+    def lookahead(
+        self, start: np.ndarray, actions: np.ndarray, values: np.ndarray | None = None
+    ) -> Lookahead:
+        """`expected_variance`'s scores with the variance before the push and, per
+        candidate, the rest poses the lookahead particles' outcomes drew."""
         k, c = self.config.lookahead_particles, len(actions)
         index = _systematic(self.weights, self.rng, k)
         masses, friction = np.tile(self.masses[index], (c, 1)), np.tile(self.friction[index], c)
@@ -541,13 +559,15 @@ class ParticleFilter:
             shares = values[index]
         prior_var = float(np.sum(shares.var(axis=0)))
         if self.density is not None:
-            return self._learned_expected_variance(start, actions, index, shares)
+            out, outcomes = self._learned_expected_variance(start, actions, index, shares)
+            return Lookahead(out, prior_var, outcomes)
         rows = np.repeat(np.asarray(actions, float), k, axis=0)
         nominal, failed = self.simulate(start, rows, masses, friction)
         starts = start[None] + self.rng.normal(0, self.obs_sigma, (len(rows), len(start)))
         noisy = np.clip(rows + self.rng.normal(0, self.env.action_noise, rows.shape), -1, 1)
         truth, truth_failed = self.simulate(starts, noisy, masses, friction)
         out = np.full(c, prior_var)
+        outcomes = np.where(truth_failed[:, None], np.nan, truth).reshape(c, k, -1)
         for j in range(c):
             part = slice(j * k, (j + 1) * k)
             y, bad = nominal[part], failed[part] | truth_failed[part]
@@ -562,27 +582,41 @@ class ParticleFilter:
             log_w[:, failed[part]] = -np.inf
             log_w[bad] = 0.0  # a failed push leaves the weights as they were
             out[j] = _expected_posterior_variance(log_w, shares)
-        return out
+        return Lookahead(out, prior_var, list(outcomes))
 
     def _learned_expected_variance(
         self, start: np.ndarray, actions: np.ndarray, index: np.ndarray, shares: np.ndarray
-    ) -> np.ndarray:
+    ) -> tuple[np.ndarray, list[np.ndarray]]:
         """`expected_variance` with the push density: each lookahead particle's outcome is
         drawn from the density (the sensing and actuation noise are in it) and every
         lookahead particle is weighed by the density of that outcome."""
         masses, friction = self.masses[index], self.friction[index]
-        out = np.empty(len(actions))
+        out, outcomes = np.empty(len(actions)), []
         for j, action in enumerate(np.asarray(actions, float)):
             seen = self.density.sample(start, action, masses, friction, self.lengths, self.rng)
             log_w = self.likelihood_power * self.density.cross_log_prob(
                 start, action, seen, masses, friction, self.lengths
             )
             out[j] = _expected_posterior_variance(log_w, shares)
-        return out
+            outcomes.append(seen)
+        return out, outcomes
+
+
+class Lookahead(NamedTuple):
+    """What `ParticleFilter.lookahead` expects of each candidate push."""
+
+    variance: np.ndarray
+    """(candidates,) the expected posterior variance after it (`expected_variance`)."""
+    prior_variance: float
+    """The posterior variance before the push."""
+    outcomes: list[np.ndarray]
+    """Per candidate, the (lookahead particles, d) rest poses its outcomes drew; NaN rows
+    where the simulated push failed."""
 
 
 class InfoSeekingPolicy:
-    """Chooses each push to shrink the posterior of the mass distribution the most."""
+    """Chooses each push to shrink the posterior of the mass distribution the most (with
+    `BayesConfig.reach_weight`, and where the chain lands)."""
 
     def __init__(self, filt: ParticleFilter, seed: int = 0, governor=None):
         self.filter, self.seed = filt, seed
@@ -599,6 +633,15 @@ class InfoSeekingPolicy:
         """Restart the candidates' randomness from the episode's seed (`ParticleFilter.reset`)."""
         self.rng = np.random.default_rng([self.seed, 37, episode])
 
+    def landing_room(self, poses: np.ndarray) -> float:
+        """The mean over rest poses (m, d) of the chain's headroom in the governor's
+        workspace as a fraction of its longest slide, each in [-1, 1]; a failed push (NaN)
+        counts 0."""
+        ws = self.governor.workspace
+        room = ws.headroom(poses, self.filter.lengths, self.governor.physics.joint_gap)
+        room = np.clip(room / max(ws.slide_max, 1e-9), -1.0, 1.0)
+        return float(np.mean(np.nan_to_num(room, nan=0.0)))
+
     def act(self, start: np.ndarray) -> np.ndarray:
         n = self.filter.candidates
         candidates = self.rng.uniform(-1, 1, size=(n, 2))
@@ -606,7 +649,12 @@ class InfoSeekingPolicy:
         if self.governor is not None:
             lengths = self.filter.lengths
             candidates = np.array([self.governor(a, start, lengths) for a in candidates], float)
-        scores = self.filter.expected_variance(start, candidates)
+        ahead = self.filter.lookahead(start, candidates)
+        scores = ahead.variance
+        weight = self.filter.config.reach_weight
+        if weight > 0 and self.governor is not None:
+            landing = np.array([self.landing_room(poses) for poses in ahead.outcomes])
+            scores = scores - weight * ahead.prior_variance * landing
         if self.reachable is not None:
             for i in np.argsort(scores, kind="stable"):
                 if self.reachable(candidates[i], start, self.filter.lengths):

@@ -476,15 +476,17 @@ def wrap_angle(a: np.ndarray | float) -> np.ndarray:
 def link_poses(
     config: np.ndarray, lengths: Sequence[float], joint_gap: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Planar forward kinematics: (n, 2) link box centres and (n,) headings for a configuration."""
+    """Planar forward kinematics: (..., n, 2) link box centres and (..., n) headings for
+    (..., d) configurations (one configuration: (n, 2) and (n,))."""
     config = np.asarray(config, dtype=float)
     n = len(lengths)
-    headings = config[2] + np.concatenate([[0.0], np.cumsum(config[3 : 3 + n - 1])])
-    centres = np.zeros((n, 2))
-    centres[0] = config[:2]
+    headings = config[..., 2:3] + np.concatenate(
+        [np.zeros((*config.shape[:-1], 1)), np.cumsum(config[..., 3 : 3 + n - 1], axis=-1)], -1
+    )
+    units = np.stack([np.cos(headings), np.sin(headings)], -1)
+    centres = np.zeros((*config.shape[:-1], n, 2))
+    centres[..., 0, :] = config[..., :2]
     for i in range(1, n):
-        u_prev = np.array([math.cos(headings[i - 1]), math.sin(headings[i - 1])])
-        u = np.array([math.cos(headings[i]), math.sin(headings[i])])
-        joint = centres[i - 1] + (lengths[i - 1] / 2 + joint_gap / 2) * u_prev
-        centres[i] = joint + (joint_gap / 2 + lengths[i] / 2) * u
+        joint = centres[..., i - 1, :] + (lengths[i - 1] / 2 + joint_gap / 2) * units[..., i - 1, :]
+        centres[..., i, :] = joint + (joint_gap / 2 + lengths[i] / 2) * units[..., i, :]
     return centres, headings

@@ -80,6 +80,21 @@ class Workspace:
         inside = (r >= self.r_min) & (r <= self.r_max) & (np.abs(bearing) <= self.max_bearing)
         return bool(inside.all())
 
+    def headroom(
+        self, configs: np.ndarray, lengths: Sequence[float], joint_gap: float
+    ) -> np.ndarray:
+        """(...,) for (..., d) configurations: how far the chain's nearest link centre lies
+        inside the workspace's boundary, m (negative outside): the longest slide, in the
+        worst direction, that leaves every centre in reach. The inner and outer arcs count
+        radially, the sides by the distance to their radial lines."""
+        centres, _ = link_poses(configs, lengths, joint_gap)
+        r, bearing = self.polar(centres)
+        angle = self.max_bearing - np.abs(bearing)
+        # Beyond a right angle past its side line, a point's nearest side is the base's axis.
+        side = np.where(angle < math.pi / 2, r * np.sin(np.minimum(angle, math.pi / 2)), r)
+        room = np.minimum(np.minimum(r - self.r_min, self.r_max - r), side)
+        return room.min(axis=-1)
+
     def robot_frame(self, config: np.ndarray) -> np.ndarray:
         """(..., 4) float32: the root link's (x, y) in the base's frame and the cosine and
         sine of its yaw there; what a policy needs to know where the chain lies from it."""
