@@ -43,6 +43,13 @@ def env_config(noise: float = 0.01) -> EnvConfig:
     return EnvConfig(physics=SETTING.physics(), pusher="stiff", obs_noise=noise, action_noise=noise)
 
 
+def small_filter() -> ParticleFilter:
+    """The same small filter each time (seed 3), its prior drawn for 0.12 m links."""
+    filt = ParticleFilter(env_config(), SMALL, seed=3)
+    filt.reset(np.array([0.12, 0.12]), episode=0)
+    return filt
+
+
 class FixedPushes:
     def __init__(self, actions):
         self.actions = list(actions)
@@ -124,17 +131,11 @@ def test_expected_variance_scores_given_values_in_place_of_the_mass_distribution
     # The same lookahead (same seed) scored on the particles' own shares gives the default's
     # numbers; one-hot classes score the class posterior's impurity, at most 1 - 1/classes.
     start, pushes = np.zeros(4), np.array([[0.02, 0.0], [0.8, 0.6]])
-
-    def fresh():
-        filt = ParticleFilter(env_config(), SMALL, seed=3)
-        filt.reset(np.array([0.12, 0.12]), episode=0)
-        return filt
-
-    default = fresh().expected_variance(start, pushes)
-    filt = fresh()
+    default = small_filter().expected_variance(start, pushes)
+    filt = small_filter()
     same = filt.expected_variance(start, pushes, values=filt.shares(filt.masses))
     np.testing.assert_allclose(same, default, rtol=1e-12)
-    filt = fresh()
+    filt = small_filter()
     onehot = np.eye(2)[(filt.shares(filt.masses)[:, 0] > 0.5).astype(int)]
     gini = filt.expected_variance(start, pushes, values=onehot)
     assert np.all((gini >= 0) & (gini <= 0.5 + 1e-12))
@@ -261,14 +262,8 @@ def test_the_best_push_the_robot_can_make_is_chosen():
 
 def test_the_lookahead_keeps_where_each_candidate_s_outcomes_left_the_chain():
     start, pushes = np.zeros(4), np.array([[0.02, 0.0], [0.8, 0.6]])
-
-    def fresh():
-        filt = ParticleFilter(env_config(), SMALL, seed=3)
-        filt.reset(np.array([0.12, 0.12]), episode=0)
-        return filt
-
-    ahead = fresh().lookahead(start, pushes)
-    np.testing.assert_allclose(ahead.variance, fresh().expected_variance(start, pushes))
+    ahead = small_filter().lookahead(start, pushes)
+    np.testing.assert_allclose(ahead.variance, small_filter().expected_variance(start, pushes))
     assert len(ahead.outcomes) == 2 and ahead.outcomes[0].shape == (SMALL.lookahead_particles, 4)
     assert ahead.prior_variance >= ahead.variance.max() - 1e-12
     # a push that misses leaves the chain about where it was; a hard one carries it away
