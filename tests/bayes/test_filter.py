@@ -343,8 +343,9 @@ def test_bad_configs_are_refused():
         BayesConfig(likelihood_power=1.5)
     with pytest.raises(ValueError, match="settle_cap"):
         BayesConfig(settle_cap=0)
-    with pytest.raises(ValueError, match="reach_weight"):
-        BayesConfig(reach_weight=-0.1)
+    for weight in (-0.1, float("inf"), float("nan")):
+        with pytest.raises(ValueError, match="reach_weight"):
+            BayesConfig(reach_weight=weight)
 
 
 def test_longer_chains_get_a_wider_likelihood_and_fewer_candidates_by_default():

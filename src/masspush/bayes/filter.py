@@ -177,8 +177,8 @@ class BayesConfig:
             raise ValueError("move_sweeps must be >= 0 and move_scale > 0")
         if not 0 < self.max_push <= 1:
             raise ValueError(f"max_push must be in (0, 1], got {self.max_push}")
-        if not self.reach_weight >= 0:
-            raise ValueError(f"reach_weight must be >= 0, got {self.reach_weight}")
+        if not 0 <= self.reach_weight < float("inf"):
+            raise ValueError(f"reach_weight must be >= 0 and finite, got {self.reach_weight}")
         if self.tail_dof is not None and self.tail_dof <= 0:
             raise ValueError(f"tail_dof must be > 0 or None, got {self.tail_dof}")
         if self.likelihood_power is not None and not 0 < self.likelihood_power <= 1:
