@@ -343,6 +343,10 @@ def test_bad_configs_are_refused():
         BayesConfig(likelihood_power=1.5)
     with pytest.raises(ValueError, match="settle_cap"):
         BayesConfig(settle_cap=0)
+    # off, it is left out of the settings a cached measurement is compared with
+    assert "reach_weight" not in ParticleFilter(env_config(), SMALL).settings()
+    weighted = ParticleFilter(env_config(), replace(SMALL, reach_weight=0.5)).settings()
+    assert weighted["reach_weight"] == 0.5
     for weight in (-0.1, float("inf"), float("nan")):
         with pytest.raises(ValueError, match="reach_weight"):
             BayesConfig(reach_weight=weight)

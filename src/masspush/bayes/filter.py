@@ -252,8 +252,11 @@ class ParticleFilter:
         """The configuration as run: `BayesConfig` with its defaults resolved for this chain,
         the simulated pusher's speed (the arm's surrogate where an arm pushes) and the
         algorithm's `FILTER_REVISION`."""
+        config = asdict(self.config)
+        if not config["reach_weight"]:  # off pushes as before it existed: caches stay valid
+            del config["reach_weight"]
         return {
-            **asdict(self.config),
+            **config,
             "revision": FILTER_REVISION,
             "motion_slack": self.motion_slack,
             "candidates": self.candidates,
