@@ -75,10 +75,7 @@ class Workspace:
 
     def holds(self, config: np.ndarray, lengths: Sequence[float], joint_gap: float) -> bool:
         """Whether every link centre of a chain in `config` lies in the workspace."""
-        centres, _ = link_poses(config, lengths, joint_gap)
-        r, bearing = self.polar(centres)
-        inside = (r >= self.r_min) & (r <= self.r_max) & (np.abs(bearing) <= self.max_bearing)
-        return bool(inside.all())
+        return bool(self.headroom(config, lengths, joint_gap) >= 0)
 
     def headroom(
         self, configs: np.ndarray, lengths: Sequence[float], joint_gap: float
