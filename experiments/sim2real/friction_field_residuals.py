@@ -11,7 +11,8 @@ averaged over the episode's observed rest poses (the friction field is the lab's
 `Lab(L)` draws it), minus its class mean. Printed: their correlation over all classes, the
 least-squares slope, and the residuals' standard deviation before and after taking out that
 slope. Only episodes with every push (`--pushes`, default 16) are read, so that each
-residual is after the same number of pushes. For docs/notebook/2026-12-05-headroom.md:
+residual is after the same number of pushes. A recording made in another lab (its robot line
+names the lab) is refused: its table is not `--lab`'s. For docs/notebook/2026-12-05-headroom.md:
 
     python experiments/sim2real/friction_field_residuals.py --lab 5 \\
         results/sim2real-bayes-placed/lab5-seed1-16push-checked-fit16/learned.jsonl
@@ -34,6 +35,8 @@ from masspush.sim import link_poses
 def residuals(path: Path, lab_seed: int, pushes: int) -> tuple[np.ndarray, np.ndarray]:
     """(estimate residuals, friction log-ratio residuals) of the recording's full episodes."""
     recording = read_recording(path)
+    if f"lab {lab_seed}," not in (recording.robot or ""):  # another lab's table
+        raise ValueError(f"{path}: not recorded in lab {lab_seed} ({recording.robot!r})")
     if recording.n_links != 2:
         raise ValueError(f"{path}: {recording.n_links}-link chains; this reads 2-link ones")
     setting = get_setting(recording.setting or "real-ur10")
@@ -68,6 +71,8 @@ def main() -> None:
     args = parser.parse_args()
     if args.pushes < 1:
         parser.error("--pushes must be >= 1")
+    if args.lab < 0:
+        parser.error("--lab must be >= 0 (a lab's seed)")
     lines = []
     try:
         for path in args.recordings:
