@@ -114,6 +114,15 @@ def test_a_recording_read_at_its_speeds_passes_each_push_through_the_reader():
         assert lengths == list(EPISODE["lengths"]) and speed == EPISODE["speeds"][k]
 
 
+def test_reading_a_files_speeds_leaves_its_recorded_actions_as_they_were(tmp_path):
+    write_recording(tmp_path / "r.jsonl", Recording(2, setting="2link-0.1-1", episodes=[EPISODE]))
+    recording = read_recording(tmp_path / "r.jsonl")  # float32 arrays, as a file gives them
+    recorded = np.array(recording.episodes[0]["actions"])
+    episodes = recording.to_episodes(lambda config, lengths, action, speed: np.array([0.9, 0.0]))
+    np.testing.assert_allclose(episodes.actions[0, :, 0], 0.9)
+    np.testing.assert_array_equal(recording.episodes[0]["actions"], recorded)
+
+
 @pytest.mark.parametrize(
     ("change", "line", "field", "message"),
     [

@@ -427,6 +427,10 @@ def test_class_episodes_start_the_chains_of_a_run_in_its_order_and_close_each_ro
 def test_the_particle_filter_is_an_arm_scored_on_the_estimates_it_recorded(density_file, tmp_path):
     from dataclasses import replace
 
+    from masspush.learn.push_density import load_push_density
+    from masspush.real.classify import TuneDensityJob, tune
+    from masspush.real.density_tuning import TuneConfig
+
     config = replace(CONFIG, world="training", segments=2, density=str(density_file),
                      models={"random": "rp", "learned": "bayes"},
                      bayes={"particles": 512})  # fmt: skip
@@ -446,6 +450,33 @@ def test_the_particle_filter_is_an_arm_scored_on_the_estimates_it_recorded(densi
     summary = (tmp_path / "summary.md").read_text()
     assert "| learned | bayes |" in summary and "learned, LSTM" not in summary
     assert (tmp_path / "accuracy-by-pushes.png").stat().st_size > 0
+    assert "posterior" not in learned  # no tuned density given
+    # A density tuned to these episodes (`masspush tune-density`) also sorts every arm's
+    # episodes by class posterior; the recordings are reused (the filter pushes as before).
+    tuned = tmp_path / "tuned.pt"
+    job = TuneDensityJob(config.setting, str(tmp_path / "learned.jsonl"), str(tuned),
+                         str(density_file))  # fmt: skip
+    tune(job, TuneConfig(steps=3, folds=0), progress=False)
+    before = (tmp_path / "learned.jsonl").read_text()
+    rescored = run_sim2real(replace(config, tuned_density=str(tuned)), tmp_path, progress=False)
+    assert (tmp_path / "learned.jsonl").read_text() == before
+    for arm in ("random", "learned"):
+        posterior = rescored["arms"][arm]["posterior"]
+        assert 0 <= posterior["accuracy"] <= 1
+        assert np.sum(posterior["confusion"]) == len(recording.episodes)
+        by_runs = rescored["arms"][arm]["by_runs"]
+        assert by_runs[-1]["posterior"] == posterior["accuracy"] and "posterior" in by_runs[0]
+    summary = (tmp_path / "summary.md").read_text()
+    assert "Sorted by the class posterior of the push density tuned" in summary
+    assert "learned, class posterior of the tuned density" in summary
+    # Refused before any episode: a density not tuned, or tuned for other classes.
+    with pytest.raises(ValueError, match="is not tuned"):
+        replace(config, tuned_density=str(density_file))
+    other = load_push_density(tuned)
+    other.meta["tuned"]["classes"] = {"a": [1.0, 2.0], "b": [2.0, 1.0]}
+    other.save(tmp_path / "other.pt")
+    with pytest.raises(ValueError, match="tuned for the classes"):
+        replace(config, tuned_density=str(tmp_path / "other.pt"))
     # A recording without its estimates cannot be scored as the filter's.
     lines = (tmp_path / "learned.jsonl").read_text().splitlines()
     bare = [lines[0]] + [

@@ -30,7 +30,7 @@ def _finetune(args: argparse.Namespace) -> int:
 def _classify_options(p: argparse.ArgumentParser) -> None:
     from masspush.real.classify import ClassifyJob
 
-    add_fields(p, ClassifyJob, required=("classifier", "episodes"))
+    add_fields(p, ClassifyJob, required=("episodes",))
 
 
 def _classify(args: argparse.Namespace) -> int:
@@ -40,14 +40,30 @@ def _classify(args: argparse.Namespace) -> int:
     return 0
 
 
+def _tune_density_options(p: argparse.ArgumentParser) -> None:
+    from masspush.real.classify import TuneDensityJob
+    from masspush.real.density_tuning import TuneConfig
+
+    add_fields(p, TuneDensityJob, required=("setting", "episodes"))
+    add_fields(p, TuneConfig)
+
+
+def _tune_density(args: argparse.Namespace) -> int:
+    from masspush.real.classify import TuneDensityJob, tune
+    from masspush.real.density_tuning import TuneConfig
+
+    print("\n".join(tune(build(TuneDensityJob, args), build(TuneConfig, args))))
+    return 0
+
+
 def _sim2real_options(p: argparse.ArgumentParser) -> None:
     from masspush.real.finetune import ClassifierConfig
     from masspush.real.sim2real import Sim2RealConfig, Sim2RealJob
 
     add_fields(p, Sim2RealConfig, only=("setting", "episodes_per_class", "seed", "world",
                                         "severity", "lab", "start_range", "start_yaw",
-                                        "segments", "governor_fit", "density", "check_reach",
-                                        "read_speeds"))  # fmt: skip
+                                        "segments", "governor_fit", "density", "tuned_density",
+                                        "check_reach", "read_speeds"))  # fmt: skip
     add_fields(p, ClassifierConfig, only=("folds", "runs"), prefix="classifier_")
     add_fields(p, Sim2RealJob)
     p.add_argument(
@@ -92,8 +108,11 @@ def _randomise(args: argparse.Namespace) -> int:
 COMMANDS = [
     Command("finetune", GROUP, "a classifier on a predictor's features from labelled recordings",
             _finetune_options, _finetune),
-    Command("classify", GROUP, "apply a saved classifier to recorded episodes",
-            _classify_options, _classify),
+    Command("classify", GROUP, "apply a saved classifier (or a tuned push density) to "
+            "recorded episodes", _classify_options, _classify),
+    Command("tune-density", GROUP, "tune the particle filter's push density to a lab's "
+            "labelled episodes; sort classes by its posterior", _tune_density_options,
+            _tune_density),
     Command("sim2real", GROUP, "the paper's real-robot test in the sim-to-real target world",
             _sim2real_options, _sim2real),
     Command("randomise", GROUP, "fine-tune a predictor on its policy's episodes in randomised "

@@ -104,7 +104,8 @@ class Recording:
         out.index[:] = np.arange(len(self.episodes))
         for i, e in enumerate(self.episodes):
             obs = np.asarray(e["observations"], np.float32).reshape(-1, d)
-            acts = np.asarray(e["actions"], np.float32).reshape(-1, 2)
+            # a copy: reading speeds must not rewrite the recording's own actions
+            acts = np.array(e["actions"], np.float32).reshape(-1, 2)
             if read_speed is not None and e.get("speeds") is not None:
                 for j, speed in enumerate(e["speeds"]):
                     acts[j] = read_speed(obs[j], e["lengths"], acts[j], float(speed))

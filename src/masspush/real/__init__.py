@@ -1,6 +1,7 @@
 """The real-robot path: the robot interface (`robot`) and its backends (`backends`), a session
 through a robot (`session`), the classifier fine-tuned on real episodes (`finetune`,
-`classify`), the sim-to-real test world (`target_world`, `sim2real`) and domain
+`classify`) and the particle filter's push density tuned to a lab (`density_tuning`), the
+sim-to-real test world (`target_world`, `sim2real`) and domain
 randomisation (`randomise`, `robot_env`), a stationary robot's speed governor fitted to a
 lab's pushes (`governor`), and the particle filter as an arm of the protocol (`filter_arm`).
 
@@ -20,9 +21,12 @@ EXPORTS = {
                  "episode_log_probs", "fit_classifier", "labelled", "predictor_features",
                  "start_pose_control", "start_pose_features", "stratified_folds"),
     "classify": (
-        "ClassifyJob", "FinetuneJob", "check_recording_fits", "classify", "finetune",
-        "read_with_predictor",
+        "ClassifyJob", "FinetuneJob", "TuneDensityJob", "check_recording_fits", "classify",
+        "classify_by_posterior", "finetune", "read_with_predictor", "tune",
     ),
+    "density_tuning": ("LabelledPush", "TuneConfig", "class_log_likelihoods", "class_masses",
+                       "cross_validate_tuning", "labelled_pushes", "posterior_accuracy",
+                       "posterior_classes", "tune_density", "tuned_classes"),
     "target_world": ("TRAINING_KNOBS", "Lab", "TargetWorld", "TargetWorldRobot", "WorldRanges",
                      "scaled_world"),
     "sim2real": ("ARMS", "FEATURE_KINDS", "FEATURE_NAMES", "Sim2RealConfig", "Sim2RealJob",

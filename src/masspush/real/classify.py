@@ -1,9 +1,10 @@
-"""`masspush finetune` and `masspush classify`: the paper's real-robot adaptation from a
-recording of labelled episodes (`masspush.real.finetune` holds the classifier itself)."""
+"""`masspush finetune`, `masspush tune-density` and `masspush classify`: the paper's
+real-robot adaptation from a recording of labelled episodes (`masspush.real.finetune` holds
+the classifier itself, `masspush.real.density_tuning` the push density tuned to a lab)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -12,7 +13,16 @@ import numpy as np
 from masspush.config import check_input, check_match, check_output
 from masspush.data.recording import Recording, iter_recording, read_recording
 from masspush.learn.predictor import load_model
-from masspush.models import resolve_model
+from masspush.learn.push_density import PUSH_DENSITY_FILE, density_for, load_push_density
+from masspush.models import resolve_model, shipped_file
+from masspush.real.density_tuning import (
+    TuneConfig,
+    class_masses,
+    cross_validate_tuning,
+    labelled_pushes,
+    posterior_classes,
+    tune_density,
+)
 from masspush.real.finetune import (
     ClassifierConfig,
     classifier_inputs,
@@ -141,20 +151,29 @@ def check_recording_fits(
 class ClassifyJob:
     """`masspush classify`: a saved classifier applied to recorded episodes."""
 
-    classifier: str
-    """The classifier file (from `masspush finetune`)."""
     episodes: str
     """Recording to classify."""
+    classifier: str | None = None
+    """The classifier file (from `masspush finetune`)."""
+    density: str | None = None
+    """Instead of a classifier: a push density tuned to the lab (`masspush tune-density`),
+    each episode sorted by its class posterior."""
     allow_mismatch: bool = False
     """Classify a recording of another setting (same number of links)."""
 
     def __post_init__(self) -> None:
-        check_input(self.classifier, "classifier")
+        if (self.classifier is None) == (self.density is None):
+            raise ValueError("give either --classifier or --density (a tuned push density)")
+        for name in ("classifier", "density"):
+            if getattr(self, name) is not None:
+                check_input(getattr(self, name), name)
         check_input(self.episodes, "episodes")
 
 
 def classify(job: ClassifyJob) -> list[str]:
     """Each episode's class and probability, and the accuracy on the labelled ones."""
+    if job.density is not None:
+        return classify_by_posterior(job)
     model, classes, meta = load_classifier(job.classifier)
     predictor, predictor_meta = load_model(meta["predictor"], meta["setting"])
     # Classifiers saved before runs could be read one by one averaged them.
@@ -184,6 +203,111 @@ def classify(job: ClassifyJob) -> list[str]:
                 "" if truth is None else f"  (label {truth}{', right' if guess == truth else ''})"
             )
             lines.append(f"{episode['id']}: {guess}  p={p.max():.2f}{mark}")
-    if known:
-        lines.append(f"accuracy on the {known} labelled episode(s): {100 * right / known:.1f} %")
-    return lines
+    return lines + accuracy_line(right, known)
+
+
+def accuracy_line(right: int, known: int) -> list[str]:
+    return [f"accuracy on the {known} labelled episode(s): {100 * right / known:.1f} %"] if known \
+        else []  # fmt: skip
+
+
+def classify_by_posterior(job: ClassifyJob) -> list[str]:
+    """`classify` with a tuned push density: each episode's class of highest posterior."""
+    try:
+        density = load_push_density(job.density)
+    except ValueError as err:
+        raise ValueError(f"density: {err}") from None
+    recording = read_recording(job.episodes)
+    setting = density.meta.get("setting")
+    check_recording_fits(recording, job.episodes, setting, density.meta["n_links"],
+                         job.allow_mismatch)  # fmt: skip
+    classes, log_post = posterior_classes(density, recording, f"density: {job.density}")
+    lines, right, known = [], 0, 0
+    for episode, row in zip(recording.episodes, log_post, strict=True):
+        guess, truth = classes[int(row.argmax())], episode.get("label")
+        right += guess == truth
+        known += truth is not None
+        mark = "" if truth is None else f"  (label {truth}{', right' if guess == truth else ''})"
+        lines.append(f"{episode['id']}: {guess}  p={np.exp(row.max()):.2f}{mark}")
+    return lines + accuracy_line(right, known)
+
+
+@dataclass(frozen=True)
+class TuneDensityJob:
+    """`masspush tune-density`: the particle filter's push density tuned to a lab's
+    labelled episodes (each with its class's masses), the class-posterior sorting
+    cross-validated."""
+
+    setting: str
+    """The density's named setting."""
+    episodes: str
+    """Recording of labelled episodes, each with its class's link masses (`masses`)."""
+    out: str = "lab-density.pt"
+    """Where to save the tuned density (tuned on every episode), with its classes."""
+    density: str | None = None
+    """The push density to tune (`masspush train-density`); default: the setting's shipped
+    one."""
+    settings_file: str | None = None
+    """TOML file with custom settings."""
+
+    def __post_init__(self) -> None:
+        check_input(self.episodes, "episodes")
+        if self.density is not None:
+            check_input(self.density, "density")
+        check_output(self.out, "out")
+
+
+def tune(job: TuneDensityJob, config: TuneConfig, progress: bool = True) -> list[str]:
+    """Cross-validate the class-posterior sorting with the density tuned per fold, then save
+    the density tuned on every episode; the report."""
+    setting = get_setting(job.setting, job.settings_file)
+    path = job.density or str(shipped_file(setting.name, PUSH_DENSITY_FILE.removesuffix(".pt")))
+    if job.density is None and not Path(path).is_file():
+        raise ValueError(f"density: setting {setting.name!r} ships no push density; give one")
+    try:
+        density = density_for(path, setting.env_config())
+    except ValueError as err:
+        raise ValueError(f"density: {err}") from None
+    if density.meta.get("actions", "commanded") != "commanded":
+        raise ValueError(
+            f"density: {path} is conditioned on the pushes as executed; tuning reads the "
+            "recorded pushes as commanded"
+        )
+    recording = read_recording(job.episodes)
+    check_recording_fits(recording, job.episodes, setting.name, setting.n_links, False)
+    labels, classes = labelled(recording)
+    try:
+        masses = class_masses(recording, classes)
+    except ValueError as err:
+        raise ValueError(f"episodes: {job.episodes}: {err}") from None
+    counts = np.bincount(labels, minlength=len(classes))
+    if config.folds and counts.min() < config.folds:
+        raise ValueError(
+            f"folds: every class needs at least {config.folds} episodes; {job.episodes} has "
+            f"{dict(zip(classes, counts.tolist(), strict=True))}"
+        )
+    pushes = labelled_pushes(recording)
+    lines = [f"{len(labels)} episodes, {len(classes)} classes, "
+             f"{sum(len(p.actions) for p in pushes)} pushes"]  # fmt: skip
+    scores = None
+    if config.folds:
+        scores = cross_validate_tuning(density, pushes, labels, masses, config, progress)
+        lines += [
+            f"sorted by class posterior: untuned density {100 * scores['untuned_accuracy']:.1f} %, "
+            f"tuned ({config.folds}-fold cross-validated) {100 * scores['accuracy']:.1f} % "
+            f"(chance {100 * scores['chance']:.1f} %)",
+            f"confusion (rows: truth, columns: predicted), classes in this order: {classes}",
+            *("  " + " ".join(f"{v:4d}" for v in row) for row in scores["confusion"]),
+        ]
+    tuned = tune_density(density, pushes, masses[labels], config, progress)
+    tuned.meta["tuned"] = {
+        "episodes": str(job.episodes),
+        "classes": {name: row.tolist() for name, row in zip(classes, masses, strict=True)},
+        "from": str(path),
+        "from_digest": density.digest(),
+        "config": asdict(config),
+        "cross_validation": scores,
+    }
+    Path(job.out).parent.mkdir(parents=True, exist_ok=True)
+    tuned.save(job.out)
+    return [*lines, *episode_counts(recording, classes), f"saved {job.out} (tuned on all)"]

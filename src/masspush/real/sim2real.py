@@ -26,6 +26,7 @@ from tqdm import tqdm
 from masspush.bayes.estimator import BAYES_MODELS
 from masspush.cluster.pool import Workers, check_address, gather, is_pool, open_pool
 from masspush.config import check_int
+from masspush.real.density_tuning import posterior_accuracy
 from masspush.real.filter_arm import FilterArm
 from masspush.real.finetune import (
     FEATURE_KINDS,
@@ -99,6 +100,12 @@ class Sim2RealConfig:
     density: str | None = None
     """The push density (`masspush train-density`) a particle-filter arm (model bayes or
     bayes-random) weighs pushes with; default: the setting's shipped one."""
+    tuned_density: str | None = None
+    """A push density tuned to the lab on other chains' labelled episodes (`masspush
+    tune-density`): every arm's episodes are also sorted by its class posterior, with no
+    classifier trained on them. The filter arm still pushes and estimates with `density`:
+    pushing with a tuned density sorted fewer chains in lab 5
+    (docs/notebook/2026-12-05-lab-tuned-density.md)."""
     bayes: dict[str, Any] | None = None
     """`BayesConfig` fields a particle-filter arm runs with instead of its defaults
     (`masspush sim2real --bayes KEY=VALUE`), e.g. {"likelihood_power": 0.5}."""
@@ -137,6 +144,8 @@ class Sim2RealConfig:
                 density_for(self.density, get_setting(self.setting).env_config())
             except ValueError as err:
                 raise ValueError(f"density: {err}") from None
+        if self.tuned_density is not None:
+            self.sorting_density()
         check_int("lab", self.lab, low=0, optional=True)
         if self.start_range is not None and not 0 <= self.start_range <= 1:
             raise ValueError(f"start_range must be in [0, 1] m, got {self.start_range!r}")
@@ -172,6 +181,27 @@ class Sim2RealConfig:
                 f"episodes_per_class must be >= the {self.classifier.folds} folds, "
                 f"got {self.episodes_per_class}"
             )
+
+    def sorting_density(self):
+        """The `tuned_density`, checked: of this setting, tuned for the protocol's classes."""
+        from masspush.learn.push_density import density_for
+        from masspush.settings import get_setting
+
+        try:
+            net = density_for(self.tuned_density, get_setting(self.setting).env_config())
+        except ValueError as err:
+            raise ValueError(f"tuned_density: {err}") from None
+        classes = net.meta.get("tuned", {}).get("classes")
+        if classes is None:
+            raise ValueError(
+                f"tuned_density: {self.tuned_density} is not tuned (`masspush tune-density`)"
+            )
+        if classes != {k: list(v) for k, v in PAPER_CLASSES.items()}:
+            raise ValueError(
+                f"tuned_density: {self.tuned_density} was tuned for the classes {classes}, "
+                f"not the protocol's {dict(PAPER_CLASSES)}"
+            )
+        return net
 
 
 @dataclass(frozen=True)
@@ -529,6 +559,11 @@ def score_arm(config: Sim2RealConfig, arm: str, path: Path) -> dict[str, Any]:
 
     for kind in kinds:
         scores[kind] = score(None, kind)
+    tuned = None if config.tuned_density is None else config.sorting_density()
+    if tuned is not None:
+        # No classifier: Bayes' rule over the classes the density was tuned on, with
+        # episodes of other chains (`masspush tune-density`).
+        scores["posterior"] = posterior_accuracy(tuned, recording, config.tuned_density)
     # The control: the start pose alone. Above chance only if which episodes were kept
     # depends on the class.
     scores["start_pose_control"] = start_pose_control(
@@ -546,6 +581,15 @@ def score_arm(config: Sim2RealConfig, arm: str, path: Path) -> dict[str, Any]:
                 else score(runs * pushes, kind)["accuracy"]
                 for kind in kinds
             }
+            | (
+                {}
+                if "posterior" not in scores
+                else {
+                    "posterior": posterior_accuracy(
+                        tuned, recording, config.tuned_density, runs * pushes
+                    )["accuracy"]
+                }
+            )
             for runs in run_counts(config.segments)
         ]
     return scores
@@ -627,7 +671,8 @@ def paired_test(truth: np.ndarray, learned: np.ndarray, random: np.ndarray) -> d
     }
 
 
-FEATURE_NAMES = {"estimate": "estimate features", "lstm": "LSTM features (paper's)"}
+FEATURE_NAMES = {"estimate": "estimate features", "lstm": "LSTM features (paper's)",
+                 "posterior": "class posterior of the tuned density"}  # fmt: skip
 
 
 def plot_accuracy_by_pushes(runs: dict[str, dict[str, Any]], path: str | Path) -> Path:
@@ -736,13 +781,20 @@ def summary_markdown(results: dict[str, Any]) -> str:
                    "added up", "average": "the runs' features averaged"}  # fmt: skip
         lines += ["", f"{config['segments']} runs of the policy per episode; "
                   f"{reading[config['classifier']['runs']]}."]  # fmt: skip
+    sorted_by = {arm: r["posterior"]["accuracy"] for arm, r in results["arms"].items()
+                 if "posterior" in r}  # fmt: skip
+    if sorted_by:
+        each = ", ".join(f"{arm} {100 * a:.1f} %" for arm, a in sorted_by.items())
+        lines += ["", "Sorted by the class posterior of the push density tuned to the lab ("
+                  f"{config.get('tuned_density')}, --tuned-density; no classifier trained on "
+                  f"these episodes): {each}."]  # fmt: skip
     for kind, p in results.get("paired", {}).items():
         lines += ["", f"Paired (the same chains), {FEATURE_NAMES[kind]}: {p['only_learned']} "
                   f"episodes only the learned policy's got right, {p['only_random']} only the "
                   f"random pushes'; exact McNemar p = {p['p_value']:.2g}."]  # fmt: skip
     by_runs = {arm: r["by_runs"] for arm, r in results["arms"].items() if "by_runs" in r}
     if by_runs:
-        columns = [(arm, kind) for arm in by_runs for kind in FEATURE_KINDS
+        columns = [(arm, kind) for arm in by_runs for kind in (*FEATURE_KINDS, "posterior")
                    if kind in by_runs[arm][0]]  # fmt: skip
         steps = next(iter(by_runs.values()))
         lines += ["", "Accuracy had each episode stopped after fewer runs of the policy:", "",
