@@ -24,6 +24,7 @@ import argparse
 import json
 import time
 import warnings
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -52,13 +53,19 @@ def class_filter(setting, frictions: int, lookahead: int, density=None) -> bayes
 def run_config(args) -> dict:
     """What the episodes kept in --out depend on: a rerun resumes only with the same."""
     keys = ("policy", "candidates", "lookahead", "frictions", "pushes", "seed", "density", "lab",
-            "chains")  # fmt: skip
+            "chains", "start_range")  # fmt: skip
     return {k: getattr(args, k) for k in keys}
 
 
 def run(args, density=None) -> dict:
     """The episodes asked for (`--episodes` per class) by id, measured or kept in --out."""
     setting = get_setting("real-ur10")
+    if (
+        args.start_range is not None
+    ):  # the chain put down on the lab's spot (`sim2real --start-range`)
+        setting = replace(
+            setting, overrides={**setting.overrides, "root_xy_range": args.start_range}
+        )
     governor = reach_governor(setting.pusher, setting.physics())
     classes = class_filter(setting, args.frictions, args.lookahead, density)
     filt, onehot = classes.filter, classes.onehot
@@ -130,6 +137,11 @@ def main() -> None:
     parser.add_argument(
         "--chains", type=int, default=0, help="the chains' seed (`masspush sim2real --seed`)"
     )
+    parser.add_argument(
+        "--start-range", type=float, default=None,
+        help="put each chain down within this many m of the origin (`masspush sim2real "
+        "--start-range`)",
+    )  # fmt: skip
     parser.add_argument("--out", default="results/class-seeking.json")
     parser.add_argument(
         "--density", help="weigh pushes with this learned push density (`masspush "
@@ -142,6 +154,8 @@ def main() -> None:
     for name, low in least.items():
         if getattr(args, name) < low:
             parser.error(f"--{name} must be at least {low}")
+    if args.start_range is not None and not 0 <= args.start_range <= 1:
+        parser.error("--start-range must be in [0, 1] m")
     for name in ("lab", "chains", "seed"):  # seeds of worlds and chains
         if (getattr(args, name) or 0) < 0:
             parser.error(f"--{name} must be at least 0")
@@ -158,6 +172,7 @@ def main() -> None:
                 "density": None,
                 "lab": None,
                 "chains": 0,
+                "start_range": None,
                 **json.loads(out.read_text())["config"],
             }
             if kept != run_config(args):
