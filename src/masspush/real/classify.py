@@ -184,7 +184,7 @@ def classify(job: ClassifyJob) -> list[str]:
     )
     # Read as the classifier's training read them (files from before: as commanded).
     read_speed = model_speed_reader(predictor_meta) if meta.get("read_speeds") else None
-    lines, right, known = [], 0, 0
+    answers: list[tuple[str, str | None, str, float]] = []
     # Piece by piece: a recording of any size is classified in the memory of one piece.
     for i, piece in enumerate(iter_recording(job.episodes)):
         if i == 0:
@@ -194,21 +194,23 @@ def classify(job: ClassifyJob) -> list[str]:
             )  # fmt: skip
         features, owner = classifier_inputs(predictor, piece.to_episodes(read_speed), reading)
         probs = np.exp(episode_log_probs(model, features, owner, len(piece.episodes)))
-        for episode, p in zip(piece.episodes, probs, strict=True):
-            guess = classes[int(p.argmax())]
-            truth = episode.get("label")
-            right += guess == truth
-            known += truth is not None
-            mark = (
-                "" if truth is None else f"  (label {truth}{', right' if guess == truth else ''})"
-            )
-            lines.append(f"{episode['id']}: {guess}  p={p.max():.2f}{mark}")
-    return lines + accuracy_line(right, known)
+        answers += [(e["id"], e.get("label"), classes[int(p.argmax())], float(p.max()))
+                    for e, p in zip(piece.episodes, probs, strict=True)]  # fmt: skip
+    return answer_lines(answers)
 
 
-def accuracy_line(right: int, known: int) -> list[str]:
-    return [f"accuracy on the {known} labelled episode(s): {100 * right / known:.1f} %"] if known \
-        else []  # fmt: skip
+def answer_lines(answers: list[tuple[str, str | None, str, float]]) -> list[str]:
+    """One line per (episode id, its label or None, the class guessed, its probability) and
+    the accuracy on the labelled ones."""
+    lines, right, known = [], 0, 0
+    for name, truth, guess, p in answers:
+        right += guess == truth
+        known += truth is not None
+        mark = "" if truth is None else f"  (label {truth}{', right' if guess == truth else ''})"
+        lines.append(f"{name}: {guess}  p={p:.2f}{mark}")
+    if known:
+        lines.append(f"accuracy on the {known} labelled episode(s): {100 * right / known:.1f} %")
+    return lines
 
 
 def classify_by_posterior(job: ClassifyJob) -> list[str]:
@@ -217,19 +219,16 @@ def classify_by_posterior(job: ClassifyJob) -> list[str]:
         density = load_push_density(job.density)
     except ValueError as err:
         raise ValueError(f"density: {err}") from None
-    recording = read_recording(job.episodes)
-    setting = density.meta.get("setting")
-    check_recording_fits(recording, job.episodes, setting, density.meta["n_links"],
-                         job.allow_mismatch)  # fmt: skip
-    classes, log_post = posterior_classes(density, recording, f"density: {job.density}")
-    lines, right, known = [], 0, 0
-    for episode, row in zip(recording.episodes, log_post, strict=True):
-        guess, truth = classes[int(row.argmax())], episode.get("label")
-        right += guess == truth
-        known += truth is not None
-        mark = "" if truth is None else f"  (label {truth}{', right' if guess == truth else ''})"
-        lines.append(f"{episode['id']}: {guess}  p={np.exp(row.max()):.2f}{mark}")
-    return lines + accuracy_line(right, known)
+    answers: list[tuple[str, str | None, str, float]] = []
+    # Piece by piece, as with a classifier: any size in the memory of one piece.
+    for i, piece in enumerate(iter_recording(job.episodes)):
+        if i == 0:
+            check_recording_fits(piece, job.episodes, density.meta.get("setting"),
+                                 density.meta["n_links"], job.allow_mismatch)  # fmt: skip
+        classes, log_post = posterior_classes(density, piece, f"density: {job.density}")
+        answers += [(e["id"], e.get("label"), classes[int(row.argmax())], float(np.exp(row.max())))
+                    for e, row in zip(piece.episodes, log_post, strict=True)]  # fmt: skip
+    return answer_lines(answers)
 
 
 @dataclass(frozen=True)
