@@ -140,6 +140,12 @@ def test_tune_density_and_classify_commands(lab, tmp_path, capsys):
     tuned = load_push_density(out).meta["tuned"]
     assert tuned["classes"] == {k: list(v) for k, v in sorted(CLASSES.items())}
     assert tuned["cross_validation"]["confusion"] is not None
+    # Several recordings are tuned on together.
+    both = tmp_path / "both.pt"
+    assert main([*args, "--folds", "0", "--out", str(both), "--episodes",
+                 f"{recording_file},{recording_file}"]) == 0  # fmt: skip
+    assert "24 episodes, 2 classes, 192 pushes" in capsys.readouterr().out
+    assert load_push_density(both).meta["tuned"]["episodes"] == [str(recording_file)] * 2
     assert main(["classify", "--density", str(out), "--episodes", str(recording_file)]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert len(lines) == 13 and lines[-1].startswith("accuracy on the 12 labelled")

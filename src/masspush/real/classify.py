@@ -239,8 +239,9 @@ class TuneDensityJob:
 
     setting: str
     """The density's named setting."""
-    episodes: str
-    """Recording of labelled episodes, each with its class's link masses (`masses`)."""
+    episodes: tuple[str, ...]
+    """Recordings of labelled episodes of one lab, each episode with its class's link
+    masses (`masses`); several are tuned on together."""
     out: str = "lab-density.pt"
     """Where to save the tuned density (tuned on every episode), with its classes."""
     density: str | None = None
@@ -250,7 +251,12 @@ class TuneDensityJob:
     """TOML file with custom settings."""
 
     def __post_init__(self) -> None:
-        check_input(self.episodes, "episodes")
+        if isinstance(self.episodes, str):  # one recording, as a string
+            object.__setattr__(self, "episodes", (self.episodes,))
+        if not self.episodes:
+            raise ValueError("episodes: name at least one recording")
+        for path in self.episodes:
+            check_input(path, "episodes")
         if self.density is not None:
             check_input(self.density, "density")
         check_output(self.out, "out")
@@ -272,17 +278,21 @@ def tune(job: TuneDensityJob, config: TuneConfig, progress: bool = True) -> list
             f"density: {path} is conditioned on the pushes as executed; tuning reads the "
             "recorded pushes as commanded"
         )
-    recording = read_recording(job.episodes)
-    check_recording_fits(recording, job.episodes, setting.name, setting.n_links, False)
-    labels, classes = labelled(recording)
+    recording = Recording(setting.n_links, setting=setting.name)
+    for path in job.episodes:
+        part = read_recording(path)
+        check_recording_fits(part, path, setting.name, setting.n_links, False)
+        recording.episodes += part.episodes
+    named = ", ".join(job.episodes)
     try:
+        labels, classes = labelled(recording)
         masses = class_masses(recording, classes)
     except ValueError as err:
-        raise ValueError(f"episodes: {job.episodes}: {err}") from None
+        raise ValueError(f"episodes: {named}: {err}") from None
     counts = np.bincount(labels, minlength=len(classes))
     if config.folds and counts.min() < config.folds:
         raise ValueError(
-            f"folds: every class needs at least {config.folds} episodes; {job.episodes} has "
+            f"folds: every class needs at least {config.folds} episodes; {named} has "
             f"{dict(zip(classes, counts.tolist(), strict=True))}"
         )
     pushes = labelled_pushes(recording)
@@ -300,7 +310,7 @@ def tune(job: TuneDensityJob, config: TuneConfig, progress: bool = True) -> list
         ]
     tuned = tune_density(density, pushes, masses[labels], config, progress)
     tuned.meta["tuned"] = {
-        "episodes": str(job.episodes),
+        "episodes": list(job.episodes),
         "classes": {name: row.tolist() for name, row in zip(classes, masses, strict=True)},
         "from": str(path),
         "from_digest": density.digest(),
