@@ -44,6 +44,11 @@ def shipped_file(setting: str, name: str) -> Path:
     return SHIPPED_DIR / setting / f"{name}.pt"
 
 
+def shipped_density(setting: str) -> Path:
+    """Where the shipped push density of `setting` lies (or would lie)."""
+    return shipped_file(setting, Path(PUSH_DENSITY_FILE).stem)
+
+
 def resolve_model(model: str | os.PathLike, setting: str) -> Path:
     """A shipped model's file for `setting` (by name: rp, rp+, tp, tp+, tp+dr), or a path."""
     if str(model) in SHIPPED_NAMES:
@@ -85,7 +90,7 @@ def load_estimator(
     pusher the model was made for."""
     if str(model) in BAYES_MODELS:
         bayes, density = dict(bayes or {}), None
-        shipped = shipped_file(setting.name, Path(PUSH_DENSITY_FILE).stem)
+        shipped = shipped_density(setting.name)
         if "likelihood" not in bayes and shipped.exists() and pusher in (None, setting.pusher):
             # A shipped density is the setting's default likelihood: in the KUKA cells it
             # halves the error of simulating the arm per particle, at a twentieth of the time

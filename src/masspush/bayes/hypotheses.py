@@ -17,11 +17,15 @@ from masspush.bayes.filter import ParticleFilter, PushLikelihood, default_config
 
 
 def friction_grid(setting, count: int) -> np.ndarray:
-    """`count` table frictions evenly inside the setting's range (its ends left out: each
-    point stands for the stretch around it)."""
+    """`count` table frictions evenly inside the setting's range (`grid_inside`)."""
+    return grid_inside(*setting.physics().friction_range, count)
+
+
+def grid_inside(low: float, high: float, count: int) -> np.ndarray:
+    """`count` frictions evenly inside [low, high], its ends left out: each point stands
+    for the stretch around it."""
     if count < 1:
         raise ValueError(f"a friction grid needs at least 1 point, got {count}")
-    low, high = setting.physics().friction_range
     return np.linspace(low, high, count + 2)[1:-1]
 
 

@@ -13,8 +13,8 @@ import numpy as np
 from masspush.config import check_input, check_match, check_output
 from masspush.data.recording import Recording, iter_recording, read_recording
 from masspush.learn.predictor import load_model
-from masspush.learn.push_density import PUSH_DENSITY_FILE, density_for, load_push_density
-from masspush.models import resolve_model, shipped_file
+from masspush.learn.push_density import density_for, load_push_density
+from masspush.models import resolve_model, shipped_density
 from masspush.real.density_tuning import (
     TuneConfig,
     class_masses,
@@ -30,6 +30,7 @@ from masspush.real.finetune import (
     episode_log_probs,
     finetune_predictor,
     fit_classifier,
+    fold_counts,
     labelled,
     load_classifier,
     save_classifier,
@@ -266,7 +267,7 @@ def tune(job: TuneDensityJob, config: TuneConfig, progress: bool = True) -> list
     """Cross-validate the class-posterior sorting with the density tuned per fold, then save
     the density tuned on every episode; the report."""
     setting = get_setting(job.setting, job.settings_file)
-    path = job.density or str(shipped_file(setting.name, PUSH_DENSITY_FILE.removesuffix(".pt")))
+    path = job.density or str(shipped_density(setting.name))
     if job.density is None and not Path(path).is_file():
         raise ValueError(f"density: setting {setting.name!r} ships no push density; give one")
     try:
@@ -289,12 +290,11 @@ def tune(job: TuneDensityJob, config: TuneConfig, progress: bool = True) -> list
         masses = class_masses(recording, classes)
     except ValueError as err:
         raise ValueError(f"episodes: {named}: {err}") from None
-    counts = np.bincount(labels, minlength=len(classes))
-    if config.folds and counts.min() < config.folds:
-        raise ValueError(
-            f"folds: every class needs at least {config.folds} episodes; {named} has "
-            f"{dict(zip(classes, counts.tolist(), strict=True))}"
-        )
+    if config.folds:
+        try:  # before any tuning
+            fold_counts(labels, len(classes), config.folds)
+        except ValueError as err:
+            raise ValueError(f"folds: {named}: {err} ({', '.join(classes)})") from None
     pushes = labelled_pushes(recording)
     lines = [f"{len(labels)} episodes, {len(classes)} classes, "
              f"{sum(len(p.actions) for p in pushes)} pushes"]  # fmt: skip

@@ -31,10 +31,11 @@ import numpy as np
 import torch
 
 from masspush.bayes.filter import friction_prior
+from masspush.bayes.hypotheses import grid_inside
 from masspush.config import check_int
 from masspush.data.recording import Recording
 from masspush.learn.push_density import PushDensity, push_inputs, push_outputs
-from masspush.real.finetune import one_thread, stratified_folds
+from masspush.real.finetune import fold_counts, one_thread, stratified_folds
 
 ROWS_PER_PASS = 20_000
 """Pushes x frictions the network evaluates at once."""
@@ -55,7 +56,7 @@ class TuneConfig:
     mean negative log-likelihood per push."""
     frictions: int = 8
     """Table frictions the lab's unknown one is marginalised over (evenly inside the
-    density's range, ends left out as in `masspush.bayes.friction_grid`)."""
+    density's range, ends left out: `masspush.bayes.hypotheses.grid_inside`)."""
     folds: int = 5
     """Cross-validation folds (stratified) of the reported accuracy; 0: tune on all and
     report none."""
@@ -118,8 +119,7 @@ def class_masses(recording: Recording, classes: list[str]) -> np.ndarray:
 
 def friction_grid(density: PushDensity, count: int) -> np.ndarray:
     """`count` frictions evenly inside the range the density's filter would guess."""
-    lo, hi = friction_prior(density, tuple(density.meta["friction_range"]))
-    return np.linspace(lo, hi, count + 2)[1:-1]
+    return grid_inside(*friction_prior(density, tuple(density.meta["friction_range"])), count)
 
 
 def _rows(
@@ -210,12 +210,7 @@ def cross_validate_tuning(
     confusion (rows: truth), each episode's out-of-fold class and the untuned density's
     accuracy on the same episodes."""
     c = len(masses)
-    counts = np.bincount(labels, minlength=c)
-    if counts.min() < config.folds:
-        raise ValueError(
-            f"every class needs at least {config.folds} episodes for {config.folds}-fold "
-            f"cross-validation; counts per class: {counts.tolist()}"
-        )
+    counts = fold_counts(labels, c, config.folds)
     frictions = friction_grid(density, config.frictions)
     untuned = class_log_likelihoods(density, pushes, masses, frictions).argmax(1)
     predicted = np.zeros(len(labels), np.int64)

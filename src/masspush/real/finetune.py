@@ -289,6 +289,17 @@ def stratified_folds(labels: np.ndarray, folds: int, seed: int) -> list[np.ndarr
     return [np.array(sorted(p), dtype=np.int64) for p in parts]
 
 
+def fold_counts(labels: np.ndarray, n_classes: int, folds: int) -> np.ndarray:
+    """Episodes per class; ValueError unless every class has one for each of `folds`."""
+    counts = np.bincount(labels, minlength=n_classes)
+    if counts.min() < folds:
+        raise ValueError(
+            f"every class needs at least {folds} episodes for {folds}-fold "
+            f"cross-validation; counts per class: {counts.tolist()}"
+        )
+    return counts
+
+
 def cross_validate(
     features: np.ndarray,
     labels: np.ndarray,
@@ -303,12 +314,7 @@ def cross_validate(
     owner = np.arange(len(labels)) if owner is None else np.asarray(owner)
     if len(owner) != len(features):
         raise ValueError(f"{len(features)} rows of features but {len(owner)} owners")
-    counts = np.bincount(labels, minlength=n_classes)
-    if counts.min() < config.folds:
-        raise ValueError(
-            f"every class needs at least {config.folds} episodes for {config.folds}-fold "
-            f"cross-validation; counts per class: {counts.tolist()}"
-        )
+    counts = fold_counts(labels, n_classes, config.folds)
     confusion = np.zeros((n_classes, n_classes), np.int64)
     per_fold = []
     predicted = np.zeros(len(labels), np.int64)

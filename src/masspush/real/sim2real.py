@@ -570,6 +570,10 @@ def score_arm(config: Sim2RealConfig, arm: str, path: Path) -> dict[str, Any]:
         episodes, labels, len(classes), config.classifier
     )
     scores["percentage_error"] = percentage_error(estimate, episodes.mass_distribution)
+
+    def sorted_right(p: int) -> float:
+        return posterior_accuracy(tuned, recording, config.tuned_density, p)["accuracy"]
+
     if config.segments > 1:
         # What a lab that stopped after fewer runs would have got, from the same episodes
         # (all runs were scored above).
@@ -581,15 +585,7 @@ def score_arm(config: Sim2RealConfig, arm: str, path: Path) -> dict[str, Any]:
                 else score(runs * pushes, kind)["accuracy"]
                 for kind in kinds
             }
-            | (
-                {}
-                if "posterior" not in scores
-                else {
-                    "posterior": posterior_accuracy(
-                        tuned, recording, config.tuned_density, runs * pushes
-                    )["accuracy"]
-                }
-            )
+            | ({} if tuned is None else {"posterior": sorted_right(runs * pushes)})
             for runs in run_counts(config.segments)
         ]
     return scores
