@@ -158,6 +158,9 @@ def test_tune_density_and_classify_commands(lab, tmp_path, capsys):
     assert main([*args, "--folds", "7", "--out", str(tmp_path / "x.pt")]) == 2
     assert "at least 7 episodes" in capsys.readouterr().err
     assert not (tmp_path / "x.pt").exists()
+    assert main([*args, "--frictions", "100000000", "--out", str(tmp_path / "z.pt")]) == 2
+    assert "frictions: batch_size" in capsys.readouterr().err
+    assert not (tmp_path / "z.pt").exists()
     assert main([*args, "--anchor", "-1"]) == 2
     assert "anchor" in capsys.readouterr().err
     unlabelled = read_recording(recording_file)

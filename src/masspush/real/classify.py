@@ -12,8 +12,8 @@ import numpy as np
 
 from masspush.config import check_input, check_match, check_output
 from masspush.data.recording import Recording, iter_recording, read_recording
-from masspush.learn.predictor import load_model
-from masspush.learn.push_density import density_for, load_push_density
+from masspush.learn.predictor import check_batch_memory, load_model
+from masspush.learn.push_density import DENSITY_BYTES_PER_PUSH, density_for, load_push_density
 from masspush.models import resolve_model, shipped_density
 from masspush.real.density_tuning import (
     TuneConfig,
@@ -296,8 +296,13 @@ def tune(job: TuneDensityJob, config: TuneConfig, progress: bool = True) -> list
         except ValueError as err:
             raise ValueError(f"folds: {named}: {err} ({', '.join(classes)})") from None
     pushes = labelled_pushes(recording)
-    lines = [f"{len(labels)} episodes, {len(classes)} classes, "
-             f"{sum(len(p.actions) for p in pushes)} pushes"]  # fmt: skip
+    total = sum(len(p.actions) for p in pushes)
+    try:  # every push at every friction is in one step: refused before it runs out of memory
+        what = f"{total:,} labelled pushes at {config.frictions:,} frictions"
+        check_batch_memory(total, config.frictions, DENSITY_BYTES_PER_PUSH, what)
+    except ValueError as err:
+        raise ValueError(f"frictions: {err}") from None
+    lines = [f"{len(labels)} episodes, {len(classes)} classes, {total} pushes"]
     scores = None
     if config.folds:
         scores = cross_validate_tuning(density, pushes, labels, masses, config, progress)
