@@ -146,6 +146,7 @@ def test_tune_density_and_classify_commands(lab, tmp_path, capsys):
                  f"{recording_file},{recording_file}"]) == 0  # fmt: skip
     assert "24 episodes, 2 classes, 192 pushes" in capsys.readouterr().out
     assert load_push_density(both).meta["tuned"]["episodes"] == [str(recording_file)] * 2
+    assert load_push_density(both).meta["tuned"]["from"] == str(student_file)
     assert main(["classify", "--density", str(out), "--episodes", str(recording_file)]) == 0
     lines = capsys.readouterr().out.splitlines()
     assert len(lines) == 13 and lines[-1].startswith("accuracy on the 12 labelled")

@@ -280,9 +280,9 @@ def tune(job: TuneDensityJob, config: TuneConfig, progress: bool = True) -> list
             "recorded pushes as commanded"
         )
     recording = Recording(setting.n_links, setting=setting.name)
-    for path in job.episodes:
-        part = read_recording(path)
-        check_recording_fits(part, path, setting.name, setting.n_links, False)
+    for where in job.episodes:
+        part = read_recording(where)
+        check_recording_fits(part, where, setting.name, setting.n_links, False)
         recording.episodes += part.episodes
     named = ", ".join(job.episodes)
     try:
