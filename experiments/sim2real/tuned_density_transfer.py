@@ -27,6 +27,7 @@ import numpy as np
 
 from masspush.data import read_recording
 from masspush.learn import load_push_density
+from masspush.models import shipped_density
 from masspush.real import paired_test, posterior_accuracy
 
 
@@ -48,6 +49,9 @@ def main() -> None:
     parser.add_argument("recordings", nargs="+", type=Path)
     parser.add_argument("--density", required=True, type=Path, help="a tuned push density")
     parser.add_argument("--pushes", type=int, default=None, help="each episode's first P")
+    parser.add_argument(
+        "--untuned", type=Path, help="the density it was tuned from (default: shipped)"
+    )
     args = parser.parse_args()
     if args.pushes is not None and args.pushes < 1:
         parser.error("--pushes must be >= 1")
@@ -55,7 +59,14 @@ def main() -> None:
         tuned = load_push_density(args.density)
         if not tuned.meta.get("tuned"):
             raise ValueError(f"{args.density}: not a tuned density (masspush tune-density)")
-        untuned = load_push_density(tuned.meta["tuned"]["from"])
+        # The density it was tuned from (its file path may be another machine's): the
+        # setting's shipped one unless --untuned names it; its digest must match.
+        untuned = load_push_density(args.untuned or shipped_density(tuned.meta["setting"]))
+        if untuned.digest() != tuned.meta["tuned"]["from_digest"]:
+            raise ValueError(
+                f"{args.density} was not tuned from {args.untuned or 'the shipped density'}"
+                " (--untuned FILE: the one it was)"
+            )
         untuned.meta["tuned"] = tuned.meta["tuned"]  # its classes and grid, its own weights
         for path in args.recordings:
             if not path.is_file():
