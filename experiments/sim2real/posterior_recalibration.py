@@ -94,12 +94,17 @@ def main() -> None:
                         help="the recording it was tuned on")  # fmt: skip
     parser.add_argument("--pushes", type=int, default=None, help="each episode's first P")
     args = parser.parse_args()
+    if args.pushes is not None and args.pushes < 1:
+        parser.error("--pushes must be >= 1")
     try:
         density = load_push_density(args.density)
         tuned_classes(density, str(args.density))
         for path in [args.calibration, *args.recordings]:
             if not path.is_file():
                 raise ValueError(f"{path}: no such recording")
+        for path in args.recordings:  # validated before the minutes of tuning
+            if not all(len(e.get("estimates", ())) for e in read_recording(path).episodes):
+                raise ValueError(f"{path}: not every episode has the filter's estimates")
         untuned_path = shipped_density(density.meta["setting"])
         if load_push_density(untuned_path).digest() != density.meta["tuned"]["from_digest"]:
             raise ValueError(f"{args.density} was not tuned from the shipped density")
