@@ -33,41 +33,26 @@ from masspush.learn import load_push_density
 from masspush.models import shipped_density
 from masspush.real import (
     ClassifierConfig,
-    LabelledPush,
     TuneConfig,
-    class_log_likelihoods,
     cross_validate,
-    friction_grid,
+    cross_validate_tuning,
     labelled_pushes,
     posterior_classes,
-    stratified_folds,
-    tune_density,
     tuned_classes,
 )
-
-
-def first(pushes: list[LabelledPush], count: int | None) -> list[LabelledPush]:
-    return [LabelledPush(*(v[:count] for v in p[:3]), p.lengths) for p in pushes]
 
 
 def out_of_fold(density, calibration: Path, untuned_path: Path, pushes: int | None) -> tuple:
     """The calibration episodes' class log-likelihoods (E, C) from their first `pushes`
     pushes, each under the density tuned (as the tuned file was) on the other folds."""
     classes, masses = tuned_classes(density, str(calibration))
-    config = TuneConfig(**density.meta["tuned"]["config"])
-    untuned = load_push_density(untuned_path)
     recording = read_recording(calibration)
     labels = np.array([classes.index(str(label)) for label in recording.labels])
-    every = labelled_pushes(recording)
-    grid = friction_grid(untuned, config.frictions)
-    out = np.zeros((len(labels), len(classes)))
-    for test in stratified_folds(labels, config.folds, config.seed):
-        train = np.setdiff1d(np.arange(len(labels)), test)
-        tuned = tune_density(untuned, [every[i] for i in train], masses[labels[train]], config,
-                             progress=False)  # fmt: skip
-        out[test] = class_log_likelihoods(tuned, first([every[i] for i in test], pushes),
-                                          masses, grid)  # fmt: skip
-    return out, labels
+    scores = cross_validate_tuning(
+        load_push_density(untuned_path), labelled_pushes(recording), labels, masses,
+        TuneConfig(**density.meta["tuned"]["config"]), progress=False, count=pushes,
+    )  # fmt: skip
+    return np.array(scores["log_likelihoods"]), labels
 
 
 def fit_offsets(log_lik: np.ndarray, labels: np.ndarray) -> np.ndarray:

@@ -10,6 +10,7 @@ from masspush.real.density_tuning import (
     TuneConfig,
     class_log_likelihoods,
     cross_validate_tuning,
+    first_pushes,
     friction_grid,
     labelled_pushes,
     tune_density,
@@ -115,6 +116,15 @@ def test_episodes_are_sorted_by_their_class_posterior_with_the_right_density(lab
     assert np.mean(log_lik.argmax(1) == labels) >= 0.9
 
 
+def test_first_pushes_keeps_each_episodes_first_ones(lab):
+    pushes = labelled_pushes(lab[2])
+    first, every = first_pushes(pushes, 1), first_pushes(pushes, None)
+    for f, e, p in zip(first, every, pushes, strict=True):
+        assert len(f.actions) == len(f.starts) == len(f.outputs) == min(1, len(p.actions))
+        assert np.array_equal(f.actions, p.actions[:1])
+        assert len(e.actions) == len(p.actions)
+
+
 def test_cross_validation_tunes_without_the_held_out_fold_and_counts_every_episode(lab):
     _, student, recording, _, _ = lab
     masses = np.array(list(CLASSES.values()))
@@ -124,6 +134,16 @@ def test_cross_validation_tunes_without_the_held_out_fold_and_counts_every_episo
                                    progress=False)  # fmt: skip
     assert np.sum(scores["confusion"]) == len(labels) == len(scores["predicted"])
     assert 0 <= scores["accuracy"] <= 1 and scores["chance"] == pytest.approx(0.5)
+    log_lik = np.array(scores["log_likelihoods"])
+    assert log_lik.shape == (len(labels), 2)
+    assert (log_lik.argmax(1) == scores["predicted"]).all()
+    # held-out episodes read from their first push: the same folds' densities, less evidence
+    first = cross_validate_tuning(student, labelled_pushes(recording), labels, masses, config,
+                                  progress=False, count=1)  # fmt: skip
+    one = class_log_likelihoods(student, first_pushes(labelled_pushes(recording), 1), masses,
+                                friction_grid(student, config.frictions))  # fmt: skip
+    assert np.mean(one.argmax(1) == labels) == pytest.approx(first["untuned_accuracy"])
+    assert not np.allclose(first["log_likelihoods"], log_lik)
     with pytest.raises(ValueError, match="at least 7 episodes"):
         cross_validate_tuning(student, labelled_pushes(recording), labels, masses,
                               TuneConfig(folds=7), progress=False)  # fmt: skip

@@ -102,6 +102,11 @@ def labelled_pushes(recording: Recording) -> list[LabelledPush]:
     return out
 
 
+def first_pushes(pushes: list[LabelledPush], count: int | None) -> list[LabelledPush]:
+    """Each episode's first `count` pushes (all with None)."""
+    return [LabelledPush(*(v[:count] for v in p[:3]), p.lengths) for p in pushes]
+
+
 def class_masses(recording: Recording, classes: list[str]) -> np.ndarray:
     """(C, n) each class's link masses, as its labelled episodes give them (all alike)."""
     rows = []
@@ -203,23 +208,25 @@ def tune_density(
 
 def cross_validate_tuning(
     density: PushDensity, pushes: list[LabelledPush], labels: np.ndarray, masses: np.ndarray,
-    config: TuneConfig, progress: bool = True,
+    config: TuneConfig, progress: bool = True, count: int | None = None,
 ) -> dict[str, Any]:  # fmt: skip
     """Stratified k-fold accuracy of sorting episodes by class posterior under the density
-    tuned on the other folds (classes' `masses` (C, n), `labels` (E,)): the accuracy, the
-    confusion (rows: truth), each episode's out-of-fold class and the untuned density's
-    accuracy on the same episodes."""
+    tuned on the other folds (on all their pushes; classes' `masses` (C, n), `labels` (E,)),
+    each held-out episode read from its first `count` pushes (all with None): the accuracy,
+    the confusion (rows: truth), each episode's out-of-fold class and class
+    log-likelihoods, and the untuned density's accuracy on the same episodes."""
     c = len(masses)
     counts = fold_counts(labels, c, config.folds)
     frictions = friction_grid(density, config.frictions)
-    untuned = class_log_likelihoods(density, pushes, masses, frictions).argmax(1)
-    predicted = np.zeros(len(labels), np.int64)
+    read = first_pushes(pushes, count)
+    untuned = class_log_likelihoods(density, read, masses, frictions).argmax(1)
+    log_lik = np.zeros((len(labels), c))
     for test in stratified_folds(labels, config.folds, config.seed):
         train = np.setdiff1d(np.arange(len(labels)), test)
         tuned = tune_density(density, [pushes[i] for i in train], masses[labels[train]],
                              config, progress)  # fmt: skip
-        held = class_log_likelihoods(tuned, [pushes[i] for i in test], masses, frictions)
-        predicted[test] = held.argmax(1)
+        log_lik[test] = class_log_likelihoods(tuned, [read[i] for i in test], masses, frictions)
+    predicted = log_lik.argmax(1)
     confusion = np.zeros((c, c), np.int64)
     np.add.at(confusion, (labels, predicted), 1)
     return {
@@ -227,6 +234,7 @@ def cross_validate_tuning(
         "untuned_accuracy": float(np.mean(untuned == labels)),
         "confusion": confusion.tolist(),
         "predicted": predicted.tolist(),
+        "log_likelihoods": log_lik.tolist(),
         "chance": float(counts.max() / counts.sum()),
         "config": asdict(config),
     }
@@ -249,9 +257,8 @@ def posterior_classes(
     grid it was tuned with."""
     classes, masses = tuned_classes(density, where)
     grid = friction_grid(density, density.meta["tuned"]["config"]["frictions"])
-    read = [LabelledPush(*(v[:pushes] for v in p[:3]), p.lengths)
-            for p in labelled_pushes(recording)]  # fmt: skip
-    log_lik = class_log_likelihoods(density, read, masses, grid)
+    log_lik = class_log_likelihoods(density, first_pushes(labelled_pushes(recording), pushes),
+                                    masses, grid)  # fmt: skip
     return classes, log_lik - np.logaddexp.reduce(log_lik, axis=1, keepdims=True)
 
 
