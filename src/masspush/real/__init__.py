@@ -25,7 +25,7 @@ EXPORTS = {
         "classify_by_posterior", "finetune", "read_with_predictor", "tune",
     ),
     "density_tuning": ("LabelledPush", "TuneConfig", "class_log_likelihoods", "class_masses",
-                       "cross_validate_tuning", "first_pushes", "labelled_pushes",
+                       "cross_validate_tuning", "first_pushes", "friction_grid", "labelled_pushes",
                        "posterior_accuracy", "posterior_classes", "tune_density",
                        "tuned_classes"),
     "target_world": ("TRAINING_KNOBS", "Lab", "TargetWorld", "TargetWorldRobot", "WorldRanges",
