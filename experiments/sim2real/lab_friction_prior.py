@@ -79,7 +79,7 @@ def main() -> None:
     except (OSError, ValueError) as err:
         sys.exit(f"error: {err}")
     grid = friction_grid(density, density.meta["tuned"]["config"]["frictions"])
-    truth = np.array([classes.index(x) for x in calibration.labels])
+    truth = np.array([classes.index(str(x)) for x in calibration.labels])
     table = friction_table(density, labelled_pushes(calibration), masses, grid)
     own = table[np.arange(len(truth)), truth]  # (E, F) under each episode's true masses
     lab = normalised(own.sum(0))
