@@ -286,9 +286,11 @@ def test_a_reach_weight_prefers_pushes_that_leave_the_chain_with_room():
         def __call__(self, action, config, lengths):
             return np.asarray(action)
 
-    def chosen(weight: float) -> tuple[np.ndarray, np.ndarray]:
-        filt = ParticleFilter(env_config(), replace(SMALL, candidates=2, reach_weight=weight))
+    def chosen(weight: float, reach_from: int = 0, weighed: int = 0):
+        config = replace(SMALL, candidates=2, reach_weight=weight, reach_from=reach_from)
+        filt = ParticleFilter(env_config(), config)
         filt.reset(np.array([0.12, 0.12]), episode=0)
+        filt.pushes.extend([None] * weighed)  # pushes already weighed this episode
         asked = []
 
         def lookahead(start, actions, values=None):
@@ -305,6 +307,11 @@ def test_a_reach_weight_prefers_pushes_that_leave_the_chain_with_room():
     action, candidates = chosen(0.0)
     assert np.array_equal(action, candidates[0])
     action, candidates = chosen(0.5)
+    assert np.array_equal(action, candidates[1])
+    # from the third push on: the first two for their information alone
+    action, candidates = chosen(0.5, reach_from=2, weighed=1)
+    assert np.array_equal(action, candidates[0])
+    action, candidates = chosen(0.5, reach_from=2, weighed=2)
     assert np.array_equal(action, candidates[1])
 
 
@@ -350,6 +357,10 @@ def test_bad_configs_are_refused():
     for weight in (-0.1, float("inf"), float("nan")):
         with pytest.raises(ValueError, match="reach_weight"):
             BayesConfig(reach_weight=weight)
+    assert "reach_from" not in ParticleFilter(env_config(), SMALL).settings()
+    assert ParticleFilter(env_config(), replace(SMALL, reach_from=2)).settings()["reach_from"] == 2
+    with pytest.raises(ValueError, match="reach_from"):
+        BayesConfig(reach_from=-1)
 
 
 def test_longer_chains_get_a_wider_likelihood_and_fewer_candidates_by_default():

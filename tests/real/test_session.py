@@ -110,3 +110,25 @@ def test_the_particle_filter_runs_a_session_and_records_its_estimates(tmp_path):
     with pytest.raises(ValueError, match="chooses its own pushes"):
         SessionConfig(robot="replay", setting=SETTING, model="bayes",
                       episodes_file=str(tmp_path / "r.jsonl"))  # fmt: skip
+
+
+def test_bayes_options_reach_the_filter_and_bad_ones_are_refused_first(monkeypatch):
+    from masspush.real import session
+
+    seen = {}
+
+    def load(model, setting, seed=0, density=None, overrides=None):
+        seen.update(model=model, overrides=overrides)
+        raise RuntimeError("loaded")  # nothing more to run
+
+    monkeypatch.setattr(session.FilterArm, "load", load)
+    options = {"reach_weight": 1.0, "reach_from": 2}
+    with pytest.raises(RuntimeError, match="loaded"):
+        run_session(SessionConfig(robot="stiff", setting=SETTING, model="bayes", bayes=options))
+    assert seen == {"model": "bayes", "overrides": options}
+    with pytest.raises(ValueError, match="no arm's model is bayes"):
+        SessionConfig(robot="stiff", setting=SETTING, model="rp", bayes=options)
+    with pytest.raises(ValueError, match="bayes: reach_from must be >= 0"):
+        SessionConfig(robot="stiff", setting=SETTING, model="bayes", bayes={"reach_from": -1})
+    with pytest.raises(ValueError, match="as density"):
+        SessionConfig(robot="stiff", setting=SETTING, model="bayes", bayes={"density": "x.pt"})

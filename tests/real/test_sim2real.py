@@ -3,6 +3,7 @@ import math
 
 import numpy as np
 import pytest
+import torch
 
 from masspush.data.recording import read_recording
 from masspush.real.finetune import PAPER_CLASSES, ClassifierConfig
@@ -494,10 +495,16 @@ def test_a_filter_arm_that_checks_reach_asks_before_every_push(monkeypatch, tmp_
 
     from masspush.sim.reach_check import ReachCheck
 
-    asked = []
+    asked, threads = [], []
     check = ReachCheck.__call__
-    monkeypatch.setattr(ReachCheck, "__call__",
-                        lambda self, *a: (asked.append(a), check(self, *a))[1])  # fmt: skip
+
+    def asking(self, *a):
+        asked.append(a)
+        threads.append(torch.get_num_threads())
+        return check(self, *a)
+
+    monkeypatch.setattr(ReachCheck, "__call__", asking)
+    before = torch.get_num_threads()
     config = replace(CONFIG, setting="real-ur10", world="training", check_reach=True,
                      models={"random": "rp", "learned": "bayes"},
                      bayes={"particles": 64, "lookahead_particles": 8})  # fmt: skip
@@ -510,6 +517,8 @@ def test_a_filter_arm_that_checks_reach_asks_before_every_push(monkeypatch, tmp_
     first = recording.episodes[0]
     np.testing.assert_allclose(asked[0][1], first["observations"][0], atol=1e-6)
     assert "(--check-reach)" in (tmp_path / "summary.md").read_text()
+    # the filter pushes on one torch thread (small calls; a pool only waits), then restores
+    assert set(threads) == {1} and torch.get_num_threads() == before
     with pytest.raises(ValueError, match="check_reach is the particle filter's"):
         Sim2RealConfig(check_reach=True)
     with pytest.raises(ValueError, match="check_reach is for a stationary robot"):

@@ -161,6 +161,12 @@ class BayesConfig:
     (`Workspace.headroom`, -1 outside the reach up to 1 at a full slide's room). 0: the
     push that teaches most now, wherever it leaves the chain [ours; docs/notebook/
     2026-12-05-headroom.md]."""
+    reach_from: int = 0
+    """The pushes of an episode chosen for their information alone before `reach_weight`
+    counts: the paper's protocol scores the first two pushes, which room bought for later
+    runs would cost (2 points at 2 pushes, docs/notebook/2026-12-05-headroom.md), while
+    the losses it avoids come over the later runs [ours; docs/notebook/
+    2026-12-06-late-reach-weight.md]."""
     tail_dof: float | None = 4.0
     """Degrees of freedom of a Student-t likelihood per component; None: Gaussian. Heavy
     tails keep the few outcomes the model reproduces badly (an arm's contact is not the
@@ -179,6 +185,8 @@ class BayesConfig:
             raise ValueError(f"max_push must be in (0, 1], got {self.max_push}")
         if not 0 <= self.reach_weight < float("inf"):
             raise ValueError(f"reach_weight must be >= 0 and finite, got {self.reach_weight}")
+        if self.reach_from < 0:
+            raise ValueError(f"reach_from must be >= 0 pushes, got {self.reach_from}")
         if self.tail_dof is not None and self.tail_dof <= 0:
             raise ValueError(f"tail_dof must be > 0 or None, got {self.tail_dof}")
         if self.likelihood_power is not None and not 0 < self.likelihood_power <= 1:
@@ -253,8 +261,9 @@ class ParticleFilter:
         the simulated pusher's speed (the arm's surrogate where an arm pushes) and the
         algorithm's `FILTER_REVISION`."""
         config = asdict(self.config)
-        if not config["reach_weight"]:  # off pushes as before it existed: caches stay valid
-            del config["reach_weight"]
+        for name in ("reach_weight", "reach_from"):  # off pushes as before: caches stay valid
+            if not config[name]:
+                del config[name]
         return {
             **config,
             "revision": FILTER_REVISION,
@@ -619,7 +628,7 @@ class Lookahead(NamedTuple):
 
 class InfoSeekingPolicy:
     """Chooses each push to shrink the posterior of the mass distribution the most (with
-    `BayesConfig.reach_weight`, and where the chain lands)."""
+    `BayesConfig.reach_weight`, from push `reach_from` on, and where the chain lands)."""
 
     def __init__(self, filt: ParticleFilter, seed: int = 0, governor=None):
         self.filter, self.seed = filt, seed
@@ -655,7 +664,11 @@ class InfoSeekingPolicy:
         ahead = self.filter.lookahead(start, candidates)
         scores = ahead.variance
         weight = self.filter.config.reach_weight
-        if weight > 0 and self.governor is not None:
+        if (
+            weight > 0
+            and self.governor is not None
+            and len(self.filter.pushes) >= self.filter.config.reach_from
+        ):
             landing = np.array([self.landing_room(poses) for poses in ahead.outcomes])
             scores = scores - weight * ahead.prior_variance * landing
         if self.reachable is not None:

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 
 from masspush.cli.command import Command
-from masspush.cli.options import add_fields, build
+from masspush.cli.options import add_bayes_option, add_fields, build
 
 GROUP = "estimate"
 
@@ -59,13 +60,16 @@ def _evaluate(args: argparse.Namespace) -> int:
 def _run_options(p: argparse.ArgumentParser) -> None:
     from masspush.real.session import SessionConfig
 
-    add_fields(p, SessionConfig, required=("robot", "setting"))
+    fields = [f.name for f in dataclasses.fields(SessionConfig) if f.name != "bayes"]
+    add_fields(p, SessionConfig, only=fields, required=("robot", "setting"))
+    add_bayes_option(p)
 
 
 def _run(args: argparse.Namespace) -> int:
+    from masspush.bayes.filter import bayes_overrides
     from masspush.real.session import SessionConfig, run_session
 
-    run_session(build(SessionConfig, args))
+    run_session(build(SessionConfig, args, bayes=bayes_overrides(args.bayes)))
     return 0
 
 

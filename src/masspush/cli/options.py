@@ -154,3 +154,13 @@ def build(cls: type, args: argparse.Namespace, base: Any = None, prefix: str = "
     if base is not None:
         return dataclasses.replace(base, **values)
     return cls(**values)
+
+
+def add_bayes_option(p: argparse.ArgumentParser) -> None:
+    """`--bayes KEY=VALUE` (repeatable): `BayesConfig` fields of a particle-filter model,
+    read by `masspush.bayes.filter.bayes_overrides`."""
+    p.add_argument(
+        "--bayes", action="append", metavar="KEY=VALUE", default=None,
+        help="change a BayesConfig field of a particle-filter arm (repeatable), "
+        "e.g. --bayes likelihood_power=0.5",
+    )  # fmt: skip

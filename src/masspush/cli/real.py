@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from masspush.cli.command import Command
-from masspush.cli.options import add_fields, build
+from masspush.cli.options import add_bayes_option, add_fields, build
 
 GROUP = "real robot"
 CLASSIFIER_FIELDS = ("folds", "features", "segment", "runs", "seed")
@@ -66,11 +66,7 @@ def _sim2real_options(p: argparse.ArgumentParser) -> None:
                                         "check_reach", "read_speeds"))  # fmt: skip
     add_fields(p, ClassifierConfig, only=("folds", "runs"), prefix="classifier_")
     add_fields(p, Sim2RealJob)
-    p.add_argument(
-        "--bayes", action="append", metavar="KEY=VALUE", default=None,
-        help="change a BayesConfig field of a particle-filter arm (repeatable), "
-        "e.g. --bayes likelihood_power=0.5",
-    )  # fmt: skip
+    add_bayes_option(p)
 
 
 def _sim2real(args: argparse.Namespace) -> int:

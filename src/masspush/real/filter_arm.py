@@ -17,9 +17,29 @@ import warnings
 import numpy as np
 
 from masspush.bayes.estimator import BayesEstimator
-from masspush.bayes.filter import InfoSeekingPolicy, UnexplainedObservationWarning, filter_for
+from masspush.bayes.filter import (
+    BayesConfig,
+    InfoSeekingPolicy,
+    UnexplainedObservationWarning,
+    filter_for,
+)
 from masspush.config import MAX_PUSHES
 from masspush.data.rollout import Episodes, RandomPolicy
+
+
+def check_bayes_options(bayes: dict | None, filtered: bool) -> None:
+    """A one-line ValueError, before any episode, for `BayesConfig` overrides (`--bayes`)
+    that no filter arm (`filtered` False) would use or that `BayesConfig` refuses."""
+    if not bayes:
+        return
+    if not filtered:
+        raise ValueError("bayes options are the particle filter's; no arm's model is bayes")
+    if "density" in bayes:
+        raise ValueError("bayes: give the push density as density (--density FILE)")
+    try:
+        BayesConfig(**bayes)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"bayes: {err}") from None
 
 
 class FilterArm:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -15,7 +16,7 @@ from masspush.learn.policy import model_policy
 from masspush.learn.predictor import load_model
 from masspush.models import resolve_model
 from masspush.real.backends import BACKENDS, RecordedPolicy, make_robot
-from masspush.real.filter_arm import FilterArm
+from masspush.real.filter_arm import FilterArm, check_bayes_options
 from masspush.real.robot import (
     check_geometry,
     fmt,
@@ -72,8 +73,12 @@ class SessionConfig:
     """The model reads each push the robot reports the speed of as the action at which its
     own pusher would have moved at that speed (`masspush.real.robot.speed_reader`);
     --no-read-speeds: as the action commanded."""
+    bayes: dict[str, Any] | None = None
+    """`BayesConfig` fields changed for the particle filter (model bayes or bayes-random;
+    `masspush run --bayes KEY=VALUE`), e.g. {"reach_weight": 1, "reach_from": 2}."""
 
     def __post_init__(self) -> None:
+        check_bayes_options(self.bayes, self.model in BAYES_MODELS)
         known = (*PUSHERS, *BACKENDS)
         if self.robot not in known:
             raise ValueError(f"robot must be one of {list(known)}, got {self.robot!r}")
@@ -127,7 +132,9 @@ def run_session(config: SessionConfig, say=print) -> list[dict]:
     existing = _recording_to_extend(config.record, setting)
     filter_arm = None
     if config.model in BAYES_MODELS:
-        predictor = filter_arm = FilterArm.load(config.model, setting, config.seed)
+        predictor = filter_arm = FilterArm.load(
+            config.model, setting, config.seed, overrides=config.bayes
+        )
         read_speed = speed_reader(setting.pusher, setting.physics())
     else:
         path = resolve_model(config.model, setting.name)

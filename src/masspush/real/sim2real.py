@@ -27,7 +27,7 @@ from masspush.bayes.estimator import BAYES_MODELS
 from masspush.cluster.pool import Workers, check_address, gather, is_pool, open_pool
 from masspush.config import check_int
 from masspush.real.density_tuning import posterior_accuracy
-from masspush.real.filter_arm import FilterArm
+from masspush.real.filter_arm import FilterArm, check_bayes_options
 from masspush.real.finetune import (
     FEATURE_KINDS,
     PAPER_CLASSES,
@@ -36,6 +36,7 @@ from masspush.real.finetune import (
     cross_validate,
     first_pushes,
     labelled,
+    one_thread,
     predictor_features,
     start_pose_control,
 )
@@ -163,17 +164,7 @@ class Sim2RealConfig:
             if _robot_facing(self.setting) is None:
                 raise ValueError(f"check_reach is for a stationary robot; the robot of "
                                  f"setting {self.setting!r} follows the chain")  # fmt: skip
-        if self.bayes:
-            from masspush.bayes.filter import BayesConfig
-
-            if not filtered:
-                raise ValueError("bayes options are the particle filter's; no arm's model is bayes")
-            if "density" in self.bayes:
-                raise ValueError("bayes: give the push density as density (--density FILE)")
-            try:
-                BayesConfig(**self.bayes)
-            except (TypeError, ValueError) as err:
-                raise ValueError(f"bayes: {err}") from None
+        check_bayes_options(self.bayes, filtered)
         if self.world != "target" and self.lab is not None:
             raise ValueError("a lab is one draw of the target world; it needs world 'target'")
         if self.episodes_per_class < self.classifier.folds:
@@ -481,17 +472,15 @@ def record_arm(
         )
     else:
         predictor, _, policy = model_and_policy(model, config.setting)
+    # The arms' network calls are small: torch's thread pool only waits on them, and with
+    # three runs side by side on two cores a filter-arm episode took 300 s instead of 34 s
+    # (the recordings are the same; docs/notebook/2026-12-06-late-reach-weight.md).
     try:
-        recording, failures, classes = record_classes(
-            config,
-            predictor,
-            policy,
-            robot_name,
-            f"{config.world} world, {arm} pushes",
-            progress,
-            target,
-            workers,
-        )
+        with one_thread():
+            recording, failures, classes = record_classes(
+                config, predictor, policy, robot_name, f"{config.world} world, {arm} pushes",
+                progress, target, workers,
+            )  # fmt: skip
     finally:
         if isinstance(policy, FilterArm):
             policy.close()
