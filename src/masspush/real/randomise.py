@@ -23,6 +23,7 @@ checkpoint (`masspush.learn.predictor.train_predictor`).
 from __future__ import annotations
 
 import json
+import multiprocessing
 import os
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field, replace
@@ -225,7 +226,11 @@ def collect_randomised(
     with tqdm(total=config.episodes, initial=done, desc=f"{WHERE[config.world]}, {config.model}",
               unit="ep", disable=not progress) as bar:  # fmt: skip
         if todo:
-            with ProcessPoolExecutor(max_workers=workers) as pool:
+            # Not forked: a child forked from a process whose torch ran on several OpenMP
+            # threads can hang in its first parallel call (seen loading the policy in a
+            # test run after other tests had used torch).
+            context = multiprocessing.get_context("forkserver")
+            with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
                 jobs = [pool.submit(_shard_job, (config, model_file, root, j)) for j in todo]
                 for job in as_completed(jobs):
                     bar.update(job.result()[1])
