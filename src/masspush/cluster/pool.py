@@ -15,8 +15,10 @@ machine for the run), `ray://HOST:PORT` (Ray Client) or `HOST:PORT` (a head node
 from __future__ import annotations
 
 import importlib.util
+import multiprocessing
 import re
 from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
 from typing import Any, Protocol, runtime_checkable
 
@@ -66,6 +68,14 @@ def check_address(address: str | None, name: str = "ray") -> None:
         raise ValueError(f"{name} must be {ADDRESS_HELP}, got {address!r}")
     if importlib.util.find_spec("ray") is None:
         raise ValueError(f"{name}: Ray is not installed here: {RAY_EXTRA}")
+
+
+def local_processes(workers: int) -> ProcessPoolExecutor:
+    """`workers` processes on this machine, started from a forkserver, not forked: a child
+    forked from a process whose torch ran on several OpenMP threads can hang in its first
+    parallel call (seen: a `randomise` worker loading its policy in a test run after other
+    tests had used torch)."""
+    return ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("forkserver"))
 
 
 @contextmanager

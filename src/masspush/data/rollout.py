@@ -16,13 +16,12 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, fields
 from typing import Protocol
 
 import numpy as np
 
-from masspush.cluster.pool import Workers, gather, is_pool, split
+from masspush.cluster.pool import Workers, gather, is_pool, local_processes, split
 from masspush.config import EnvConfig
 from masspush.sim.chain import ChainParams, sample_chain
 from masspush.sim.pushers import on_batch_path, reach_governor
@@ -320,5 +319,5 @@ def run_episodes(
         return run_env(env_config, policy, indices, purpose, base_seed)
     parts = np.array_split(indices, workers)
     jobs = [(env_config, policy, p, purpose, base_seed) for p in parts if len(p)]
-    with ProcessPoolExecutor(max_workers=len(jobs)) as pool:
+    with local_processes(len(jobs)) as pool:
         return Episodes.concatenate(list(pool.map(_run_env_job, jobs)))

@@ -23,9 +23,8 @@ checkpoint (`masspush.learn.predictor.train_predictor`).
 from __future__ import annotations
 
 import json
-import multiprocessing
 import os
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import as_completed
 from dataclasses import asdict, dataclass, field, replace
 from functools import partial
 from pathlib import Path
@@ -34,6 +33,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from masspush.cluster.pool import local_processes
 from masspush.config import check_int
 from masspush.data.dataset import MANIFEST, Manifest, new_manifest, write_manifest
 from masspush.data.rollout import Episodes, empty_episodes, failure_code
@@ -226,11 +226,7 @@ def collect_randomised(
     with tqdm(total=config.episodes, initial=done, desc=f"{WHERE[config.world]}, {config.model}",
               unit="ep", disable=not progress) as bar:  # fmt: skip
         if todo:
-            # Not forked: a child forked from a process whose torch ran on several OpenMP
-            # threads can hang in its first parallel call (seen loading the policy in a
-            # test run after other tests had used torch).
-            context = multiprocessing.get_context("forkserver")
-            with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+            with local_processes(workers) as pool:
                 jobs = [pool.submit(_shard_job, (config, model_file, root, j)) for j in todo]
                 for job in as_completed(jobs):
                     bar.update(job.result()[1])
