@@ -469,6 +469,17 @@ def test_the_particle_filter_is_an_arm_scored_on_the_estimates_it_recorded(densi
         assert by_runs[-1]["posterior"] == posterior["accuracy"] and "posterior" in by_runs[0]
     summary = (tmp_path / "summary.md").read_text()
     assert "Sorted by the class posterior of the push density tuned" in summary
+    # The filter's settings as run, defaults included, are kept beside its recording: one
+    # made under other defaults (here another reach weight) is recorded anew, not reused.
+    assert rescored["arms"]["learned"]["filter"]["particles"] == 512
+    assert "filter" not in rescored["arms"]["random"]
+    counts = tmp_path / "learned.failures.json"
+    kept = json.loads(counts.read_text())
+    kept["filter"]["reach_weight"] = 1.0
+    counts.write_text(json.dumps(kept))
+    anew = run_sim2real(config, tmp_path, progress=False)
+    assert anew["arms"]["learned"]["reused"] is False and anew["arms"]["random"]["reused"]
+    assert "reach_weight" not in json.loads(counts.read_text())["filter"]
     assert "learned, class posterior of the tuned density" in summary
     # Refused before any episode: a density not tuned, or tuned for other classes.
     with pytest.raises(ValueError, match="is not tuned"):

@@ -420,9 +420,10 @@ def record_arm(
     config: Sim2RealConfig, arm: str, path: Path, progress: bool = True,
     target: TargetWorld | None = None, robot_name: str | None = None, workers: Workers = None,
 ) -> dict[str, Any]:  # fmt: skip
-    """Run one arm's episodes in the target world into the recording at `path` (kept and
-    reused when complete, with its failed pushes and each class's episodes attempted, kept
-    and lost beside it); returns those counts.
+    """Run one arm's episodes in the target world into the recording at `path` (kept, with
+    its failed pushes, each class's episodes attempted, kept and lost, and a filter arm's
+    settings as run beside it; reused when complete and made by the same robot and filter
+    settings); returns those counts (and the filter's settings).
     `target` replaces the target world (`record_classes`); `robot_name`, which names the
     recording and decides whether a kept one is reused, then tells the worlds apart."""
     from masspush.data.recording import read_recording, write_recording
@@ -455,6 +456,14 @@ def record_arm(
             robot_name += ", pushes checked for reach"
         if model in BAYES_MODELS:  # its recorded estimates depend on it
             robot_name += ", speeds read" if config.read_speeds else ", speeds not read"
+    arm_filter, filter_settings = None, None
+    if model in BAYES_MODELS:
+        arm_filter = FilterArm.load(
+            model, get_setting(config.setting), config.seed, config.density, config.bayes
+        )
+        # The filter as configured, defaults included: the robot's name lists only the
+        # options given, and a recording made under other defaults must not be reused.
+        filter_settings = json.loads(json.dumps(arm_filter.filter.settings()))
     if path.exists() and counts.exists():
         kept = json.loads(counts.read_text())
         recording = read_recording(path)
@@ -463,13 +472,13 @@ def record_arm(
             and "by_class" in kept  # written by the protocol that never replaces episodes
             and sum(c["attempted"] for c in kept["by_class"].values()) == wanted
             and recording.robot == robot_name
+            and kept.get("filter") == filter_settings
         ):
+            if arm_filter is not None:
+                arm_filter.close()
             return {"episodes": wanted, **kept, "reused": True}
-    if model in BAYES_MODELS:
-        setting = get_setting(config.setting)
-        predictor = policy = FilterArm.load(
-            model, setting, config.seed, config.density, config.bayes
-        )
+    if arm_filter is not None:
+        predictor = policy = arm_filter
     else:
         predictor, _, policy = model_and_policy(model, config.setting)
     # The arms' network calls are small: torch's thread pool only waits on them, and with
@@ -486,6 +495,8 @@ def record_arm(
             policy.close()
     write_recording(path, recording)
     kept = {"failed_pushes": failures, "by_class": classes}
+    if filter_settings is not None:
+        kept["filter"] = filter_settings
     counts.write_text(json.dumps(kept) + "\n")
     return {"episodes": wanted, **kept, "reused": False}
 
