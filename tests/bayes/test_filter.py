@@ -315,6 +315,21 @@ def test_a_reach_weight_prefers_pushes_that_leave_the_chain_with_room():
     assert np.array_equal(action, candidates[1])
 
 
+def test_a_stationary_robot_weighs_the_reach_from_the_third_push_by_default():
+    from masspush.models import load_estimator
+
+    real = get_setting("real-ur10")
+    for likelihood in ("learned", "simulator"):
+        config = default_config(real, likelihood=likelihood)
+        assert (config.reach_weight, config.reach_from) == (1.0, 2)
+    # a robot whose base follows the chain has no reach to keep
+    for name in ("2link-0.1-1", "2link-1-10"):
+        assert default_config(get_setting(name)).reach_weight == 0
+    assert default_config(real, pusher="ur10").reach_weight == 0
+    off = load_estimator("bayes", real, bayes={"reach_weight": 0.0}, progress=False)
+    assert off.config.reach_weight == 0  # a lab may turn it off (--bayes reach_weight=0)
+
+
 def test_a_chain_still_creeping_at_the_settle_cap_is_taken_where_it_is():
     short = ParticleFilter(env_config(), BayesConfig(particles=8, settle_cap=0.02), seed=0)
     full = ParticleFilter(env_config(), BayesConfig(particles=8, settle_cap=10.0), seed=0)

@@ -13,6 +13,7 @@ from masspush.real.sim2real import (
     paired_answers,
     paired_test,
     plot_accuracy_by_pushes,
+    reach_note,
     run_counts,
     run_sim2real,
     summary_markdown,
@@ -71,6 +72,18 @@ def test_a_rerun_reuses_the_recordings(run):
     assert again["arms"]["learned"]["reused"] is True
     assert (out / "learned.jsonl").read_bytes() == before
     assert again["arms"]["learned"]["estimate"] == results["arms"]["learned"]["estimate"]
+
+
+def test_the_summary_says_which_filter_arm_weighed_the_reach():
+    arms = {
+        "random": {"model": "rp"},
+        "learned": {"filter": {"reach_weight": 1.0, "reach_from": 2}},
+    }
+    assert reach_note(arms) == (
+        " The learned arm's filter also valued leaving the chain room in the reach from push 3"
+        " on (reach_weight 1)."
+    )
+    assert reach_note({"learned": {"filter": {"particles": 512}}}) == ""
 
 
 def test_too_few_episodes_for_the_folds_are_refused():

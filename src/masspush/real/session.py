@@ -75,7 +75,8 @@ class SessionConfig:
     --no-read-speeds: as the action commanded."""
     bayes: dict[str, Any] | None = None
     """`BayesConfig` fields changed for the particle filter (model bayes or bayes-random;
-    `masspush run --bayes KEY=VALUE`), e.g. {"reach_weight": 1, "reach_from": 2}."""
+    `masspush run --bayes KEY=VALUE`), e.g. {"reach_weight": 0} for pushes chosen for their
+    information alone on a stationary robot."""
 
     def __post_init__(self) -> None:
         check_bayes_options(self.bayes, self.model in BAYES_MODELS)

@@ -722,6 +722,22 @@ def plot_accuracy_by_pushes(runs: dict[str, dict[str, Any]], path: str | Path) -
     return path
 
 
+def reach_note(arms: dict[str, Any]) -> str:
+    """A sentence for each filter arm whose pushes also valued leaving the chain room in
+    the reach (`BayesConfig.reach_weight`, on by default for a stationary robot), which a
+    reader of the summary would otherwise not see; "" for none."""
+    notes = []
+    for arm, r in arms.items():
+        settings = r.get("filter") or {}
+        if settings.get("reach_weight"):
+            notes.append(
+                f" The {arm} arm's filter also valued leaving the chain room in the reach from "
+                f"push {settings.get('reach_from', 0) + 1} on (reach_weight "
+                f"{settings['reach_weight']:g})."
+            )
+    return "".join(notes)
+
+
 def summary_markdown(results: dict[str, Any]) -> str:
     """The accuracy table (ours beside the paper's) and each arm's confusion matrices."""
     config = results["config"]
@@ -757,7 +773,8 @@ def summary_markdown(results: dict[str, Any]) -> str:
                  f" Chains laid with the first link at {config['start_yaw']:g} degrees to "
                  f"the direction the robot faces (--start-yaw).")
               + (" The filter arm pushed the best candidate the arm could reach "
-                 "(--check-reach)." if config.get("check_reach") else ""), "",
+                 "(--check-reach)." if config.get("check_reach") else "")
+              + reach_note(results["arms"]), "",
               "| policy | class | attempted | kept | lost the chain | failed otherwise "
               "| good pushes per episode |", "|---|---|---|---|---|---|---|"]  # fmt: skip
     for arm, r in results["arms"].items():
