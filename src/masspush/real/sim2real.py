@@ -491,8 +491,8 @@ def record_arm(
                 progress, target, workers,
             )  # fmt: skip
     finally:
-        if isinstance(policy, FilterArm):
-            policy.close()
+        if arm_filter is not None:
+            arm_filter.close()
     write_recording(path, recording)
     kept = {"failed_pushes": failures, "by_class": classes}
     if filter_settings is not None:
