@@ -84,6 +84,7 @@ def test_the_summary_says_which_filter_arm_weighed_the_reach():
         " on (reach_weight 1)."
     )
     assert reach_note({"learned": {"filter": {"particles": 512}}}) == ""
+    assert reach_note(arms, stationary=False) == ""  # no governor: the weight is unused
 
 
 def test_too_few_episodes_for_the_folds_are_refused():

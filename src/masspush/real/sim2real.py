@@ -722,10 +722,13 @@ def plot_accuracy_by_pushes(runs: dict[str, dict[str, Any]], path: str | Path) -
     return path
 
 
-def reach_note(arms: dict[str, Any]) -> str:
+def reach_note(arms: dict[str, Any], stationary: bool = True) -> str:
     """A sentence for each filter arm whose pushes also valued leaving the chain room in
     the reach (`BayesConfig.reach_weight`, on by default for a stationary robot), which a
-    reader of the summary would otherwise not see; "" for none."""
+    reader of the summary would otherwise not see; "" for none, and where the robot is not
+    `stationary` (its base follows the chain: no reach to weigh, the weight is unused)."""
+    if not stationary:
+        return ""
     notes = []
     for arm, r in arms.items():
         settings = r.get("filter") or {}
@@ -774,7 +777,7 @@ def summary_markdown(results: dict[str, Any]) -> str:
                  f"the direction the robot faces (--start-yaw).")
               + (" The filter arm pushed the best candidate the arm could reach "
                  "(--check-reach)." if config.get("check_reach") else "")
-              + reach_note(results["arms"]), "",
+              + reach_note(results["arms"], _robot_facing(config["setting"]) is not None), "",
               "| policy | class | attempted | kept | lost the chain | failed otherwise "
               "| good pushes per episode |", "|---|---|---|---|---|---|---|"]  # fmt: skip
     for arm, r in results["arms"].items():
