@@ -1,3 +1,5 @@
+import warnings
+
 import numpy as np
 import pytest
 import torch
@@ -6,8 +8,11 @@ from masspush.cli import main
 from masspush.data.recording import Recording, read_recording, write_recording
 from masspush.learn.push_density import PushDensity, load_push_density
 from masspush.models import shipped_file
+from masspush.real.classify import ClassifyJob, classify_by_posterior
 from masspush.real.density_tuning import (
+    CalibrationWarning,
     TuneConfig,
+    check_calibration_length,
     class_log_likelihoods,
     cross_validate_tuning,
     first_pushes,
@@ -191,3 +196,26 @@ def test_tune_density_and_classify_commands(lab, tmp_path, capsys):
     assert main([*args[:4], str(tmp_path / "nomass.jsonl"), *args[5:], "--out",
                  str(tmp_path / "y.pt")]) == 2  # fmt: skip
     assert "the same masses" in capsys.readouterr().err
+
+
+def test_a_density_tuned_on_short_episodes_warns_where_it_sorts_longer_ones(lab, tmp_path):
+    teacher, _, _, recording_file, student_file = lab
+    out = tmp_path / "tuned.pt"
+    assert main(["tune-density", "--setting", SETTING, "--episodes", str(recording_file),
+                 "--density", str(student_file), "--steps", "1", "--folds", "0",
+                 "--out", str(out)]) == 0  # fmt: skip
+    density = load_push_density(out)
+    assert density.meta["tuned"]["pushes_per_episode"] == 8.0
+    longer = tmp_path / "longer.jsonl"
+    record(longer, lab_episodes(teacher, 2, 16, seed=3))
+    with pytest.warns(CalibrationWarning, match="8.0 pushes on average and sorts episodes of 16.0"):
+        classify_by_posterior(ClassifyJob(str(longer), density=str(out)))
+    with warnings.catch_warnings():  # as long as the calibration's, or a little longer: none
+        warnings.simplefilter("error", CalibrationWarning)
+        classify_by_posterior(ClassifyJob(str(recording_file), density=str(out)))
+        check_calibration_length(density, 10.0, "here")
+        del density.meta["tuned"]["pushes_per_episode"]  # tuned before it was kept
+        check_calibration_length(density, 100.0, "here")
+    density.meta["tuned"]["pushes_per_episode"] = 8.0
+    with pytest.warns(CalibrationWarning, match="^here was tuned"):
+        check_calibration_length(density, 10.1, "here")

@@ -444,7 +444,7 @@ def test_the_particle_filter_is_an_arm_scored_on_the_estimates_it_recorded(densi
 
     from masspush.learn.push_density import load_push_density
     from masspush.real.classify import TuneDensityJob, tune
-    from masspush.real.density_tuning import TuneConfig
+    from masspush.real.density_tuning import CalibrationWarning, TuneConfig
 
     config = replace(CONFIG, world="training", segments=2, density=str(density_file),
                      models={"random": "rp", "learned": "bayes"},
@@ -503,6 +503,15 @@ def test_the_particle_filter_is_an_arm_scored_on_the_estimates_it_recorded(densi
     other.save(tmp_path / "other.pt")
     with pytest.raises(ValueError, match="tuned for the classes"):
         replace(config, tuned_density=str(tmp_path / "other.pt"))
+    # Tuned on episodes much shorter than these runs: a warning, before any episode.
+    assert load_push_density(tuned).meta["tuned"]["pushes_per_episode"] == pytest.approx(
+        np.mean([len(e["actions"]) for e in recording.episodes])
+    )
+    short = load_push_density(tuned)
+    short.meta["tuned"]["pushes_per_episode"] = 1.0
+    short.save(tmp_path / "short.pt")
+    with pytest.warns(CalibrationWarning, match="tune it on runs as long as those it sorts"):
+        replace(config, tuned_density=str(tmp_path / "short.pt"))
     # A recording without its estimates cannot be scored as the filter's.
     lines = (tmp_path / "learned.jsonl").read_text().splitlines()
     bare = [lines[0]] + [

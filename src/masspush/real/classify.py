@@ -17,10 +17,12 @@ from masspush.learn.push_density import DENSITY_BYTES_PER_PUSH, density_for, loa
 from masspush.models import resolve_model, shipped_density
 from masspush.real.density_tuning import (
     TuneConfig,
+    check_calibration_length,
     class_masses,
     cross_validate_tuning,
     labelled_pushes,
     posterior_classes,
+    pushes_per_episode,
     tune_density,
 )
 from masspush.real.finetune import (
@@ -226,6 +228,8 @@ def classify_by_posterior(job: ClassifyJob) -> list[str]:
         if i == 0:
             check_recording_fits(piece, job.episodes, density.meta.get("setting"),
                                  density.meta["n_links"], job.allow_mismatch)  # fmt: skip
+            length = pushes_per_episode(labelled_pushes(piece))
+            check_calibration_length(density, length, f"density: {job.density}")
         classes, log_post = posterior_classes(density, piece, f"density: {job.density}")
         answers += [(e["id"], e.get("label"), classes[int(row.argmax())], float(np.exp(row.max())))
                     for e, row in zip(piece.episodes, log_post, strict=True)]  # fmt: skip
@@ -302,7 +306,9 @@ def tune(job: TuneDensityJob, config: TuneConfig, progress: bool = True) -> list
         check_batch_memory(total, config.frictions, DENSITY_BYTES_PER_PUSH, what)
     except ValueError as err:
         raise ValueError(f"frictions: {err}") from None
-    lines = [f"{len(labels)} episodes, {len(classes)} classes, {total} pushes"]
+    per_episode = pushes_per_episode(pushes)
+    lines = [f"{len(labels)} episodes, {len(classes)} classes, {total} pushes "
+             f"({per_episode:.1f} per episode: sort episodes at most about as long)"]  # fmt: skip
     scores = None
     if config.folds:
         scores = cross_validate_tuning(density, pushes, labels, masses, config, progress)
@@ -321,6 +327,7 @@ def tune(job: TuneDensityJob, config: TuneConfig, progress: bool = True) -> list
         "from_digest": density.digest(),
         "config": asdict(config),
         "cross_validation": scores,
+        "pushes_per_episode": per_episode,
     }
     Path(job.out).parent.mkdir(parents=True, exist_ok=True)
     tuned.save(job.out)

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import copy
 import math
+import warnings
 from dataclasses import asdict, dataclass
 from typing import Any, NamedTuple
 
@@ -39,6 +40,18 @@ from masspush.real.finetune import fold_counts, one_thread, stratified_folds
 
 ROWS_PER_PASS = 20_000
 """Pushes x frictions the network evaluates at once."""
+
+LONGER_THAN_CALIBRATION = 1.25
+"""Episodes longer than this times the calibration's mean pushes per episode are sorted
+with a `CalibrationWarning`: lab 6's 32-push runs sorted by a density tuned on 16-push runs
+scored 87.8 %, tuned on another 32-push run 89.7 % on average over twelve pairings (exact
+McNemar p = 0.024 pooled over the held-out runs, tuned on three; the late pushes meet the
+chain elsewhere on the table and pushed otherwise; docs/notebook/2026-12-06-calibration-runs.md)
+[ours, measured]. The margin lets a calibration keep episodes that lost the chain early."""
+
+
+class CalibrationWarning(UserWarning):
+    """A tuned density sorting episodes longer than those it was tuned on."""
 
 
 @dataclass(frozen=True)
@@ -238,6 +251,28 @@ def cross_validate_tuning(
         "chance": float(counts.max() / counts.sum()),
         "config": asdict(config),
     }
+
+
+def pushes_per_episode(pushes: list[LabelledPush]) -> float:
+    """The mean pushes of the episodes that have any (the tuned density keeps it)."""
+    counts = [len(p.actions) for p in pushes if len(p.actions)]
+    return float(np.mean(counts)) if counts else 0.0
+
+
+def check_calibration_length(density: PushDensity, pushes: float, where: str) -> None:
+    """Warn (`CalibrationWarning`) where a tuned density sorts episodes of `pushes` pushes
+    (on average) though its calibration's were much shorter (`LONGER_THAN_CALIBRATION`);
+    densities tuned before it was recorded pass unchecked."""
+    tuned = density.meta.get("tuned") or {}
+    calibration = tuned.get("pushes_per_episode")
+    if calibration and pushes > LONGER_THAN_CALIBRATION * calibration:
+        warnings.warn(
+            f"{where} was tuned on episodes of {calibration:.1f} pushes on average and sorts "
+            f"episodes of {pushes:.1f}: tune it on runs as long as those it sorts "
+            "(docs/real-robot.md, 'Tuning the density to your lab')",
+            CalibrationWarning,
+            stacklevel=2,
+        )
 
 
 def tuned_classes(density: PushDensity, where: str) -> tuple[list[str], np.ndarray]:

@@ -26,7 +26,7 @@ from tqdm import tqdm
 from masspush.bayes.estimator import BAYES_MODELS
 from masspush.cluster.pool import Workers, check_address, gather, is_pool, open_pool
 from masspush.config import check_int
-from masspush.real.density_tuning import posterior_accuracy
+from masspush.real.density_tuning import check_calibration_length, posterior_accuracy
 from masspush.real.filter_arm import FilterArm, check_bayes_options
 from masspush.real.finetune import (
     FEATURE_KINDS,
@@ -192,6 +192,8 @@ class Sim2RealConfig:
                 f"tuned_density: {self.tuned_density} was tuned for the classes {classes}, "
                 f"not the protocol's {dict(PAPER_CLASSES)}"
             )
+        pushes = self.segments * get_setting(self.setting).env_config().pushes
+        check_calibration_length(net, pushes, f"tuned_density: {self.tuned_density}")
         return net
 
 
