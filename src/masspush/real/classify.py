@@ -307,8 +307,10 @@ def tune(job: TuneDensityJob, config: TuneConfig, progress: bool = True) -> list
     except ValueError as err:
         raise ValueError(f"frictions: {err}") from None
     per_episode = pushes_per_episode(pushes)
-    lines = [f"{len(labels)} episodes, {len(classes)} classes, {total} pushes "
-             f"({per_episode:.1f} per episode: sort episodes at most about as long)"]  # fmt: skip
+    lines = [
+        f"{len(labels)} episodes, {len(classes)} classes, {total} pushes ({per_episode:.1f} "
+        "per episode: for sorting episodes up to about as long)"
+    ]
     scores = None
     if config.folds:
         scores = cross_validate_tuning(density, pushes, labels, masses, config, progress)

@@ -269,7 +269,7 @@ def check_calibration_length(density: PushDensity, pushes: float, where: str) ->
         warnings.warn(
             f"{where} was tuned on episodes of {calibration:.1f} pushes on average and sorts "
             f"episodes of {pushes:.1f}: tune it on runs as long as those it sorts "
-            "(docs/real-robot.md, 'Tuning the density to your lab')",
+            "(docs/real-robot.md, 'Tuning the particle filter's push density to your lab')",
             CalibrationWarning,
             stacklevel=2,
         )
