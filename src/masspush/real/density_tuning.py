@@ -43,11 +43,12 @@ ROWS_PER_PASS = 20_000
 
 LONGER_THAN_CALIBRATION = 1.25
 """Episodes longer than this times the calibration's mean pushes per episode are sorted
-with a `CalibrationWarning`: lab 6's 32-push runs sorted by a density tuned on 16-push runs
-scored 87.8 %, tuned on another 32-push run 89.7 % on average over twelve pairings (exact
-McNemar p = 0.024 pooled over the held-out runs, tuned on three; the late pushes meet the
-chain elsewhere on the table and pushed otherwise; docs/notebook/2026-12-06-calibration-runs.md)
-[ours, measured]. The margin lets a calibration keep episodes that lost the chain early."""
+with a `CalibrationWarning`. Lab 6's 32-push runs (600 chains) sorted 87.8 % with a density
+tuned on a 16-push run, 89.2 % tuned on a 32-push run of other chains and 90.2 % on three
+(exact McNemar p = 0.024 against the 16-push calibration); lab 5's 92.0 % either way: the
+later pushes meet the chain elsewhere on the table, pushed otherwise
+(docs/notebook/2026-12-06-calibration-runs.md) [ours, measured]. The margin leaves room for
+calibration episodes that lost the chain early."""
 
 
 class CalibrationWarning(UserWarning):
