@@ -36,8 +36,10 @@ PUSH_COUNTS = (2, 16, None)
 
 def tuned_on(setting: str, recordings: list[Path], cache: Path, steps: int) -> Path:
     """The density tuned on `recordings` (their own folds not cross-validated), from the
-    cache where it was tuned before."""
-    key = hashlib.sha1("\n".join([setting, str(steps), *map(str, recordings)]).encode())
+    cache where it was tuned before on the same contents."""
+    key = hashlib.sha1(f"{setting}\n{steps}".encode())
+    for path in recordings:
+        key.update(path.read_bytes())
     out = cache / f"tuned-{key.hexdigest()[:12]}.pt"
     if not out.is_file():
         print(f"tuning on {', '.join(map(str, recordings))} ...", file=sys.stderr)
