@@ -34,17 +34,17 @@ PUSH_COUNTS = (2, 16, None)
 """After how many pushes each held-out episode is sorted (None: all it has)."""
 
 
-def tuned_on(setting: str, recordings: list[Path], cache: Path, steps: int) -> Path:
+def tuned_on(setting: str, recordings: list[Path], cache: Path, config: TuneConfig) -> Path:
     """The density tuned on `recordings` (their own folds not cross-validated), from the
     cache where it was tuned before on the same contents."""
-    key = hashlib.sha1(f"{setting}\n{steps}".encode())
+    key = hashlib.sha1(f"{setting}\n{config.steps}".encode())
     for path in recordings:
         key.update(path.read_bytes())
     out = cache / f"tuned-{key.hexdigest()[:12]}.pt"
     if not out.is_file():
         print(f"tuning on {', '.join(map(str, recordings))} ...", file=sys.stderr)
         job = TuneDensityJob(setting, tuple(map(str, recordings)), out=str(out))
-        tune(job, TuneConfig(steps=steps, folds=0), progress=False)
+        tune(job, config, progress=False)
     return out
 
 
@@ -65,12 +65,15 @@ def main() -> None:
     for path in [*args.recordings, *([args.reference] if args.reference else [])]:
         if not path.is_file():
             parser.error(f"{path}: no such file")
+    if args.cache.exists() and not args.cache.is_dir():
+        parser.error(f"--cache {args.cache}: not a directory")
     try:
+        config = TuneConfig(steps=args.steps, folds=0)
+        args.cache.mkdir(parents=True, exist_ok=True)
         reference = load_push_density(args.reference) if args.reference else None
         recordings = {path: read_recording(path) for path in args.recordings}
     except (OSError, ValueError) as err:
         sys.exit(f"error: {err}")
-    args.cache.mkdir(parents=True, exist_ok=True)
     columns = " | ".join(f"after {p or 'all'}" for p in PUSH_COUNTS)
     print(f"| held out | tuned on | {columns} | reference after all | only reference / only "
           "these right, p |")  # fmt: skip
@@ -82,7 +85,7 @@ def main() -> None:
         groups = [others] if args.calibrate == "all" else [[p] for p in others]
         for group in groups:
             try:
-                density = load_push_density(tuned_on(args.setting, group, args.cache, args.steps))
+                density = load_push_density(tuned_on(args.setting, group, args.cache, config))
                 scores = {p: posterior_accuracy(density, recording, str(held), p)
                           for p in PUSH_COUNTS}  # fmt: skip
             except (OSError, ValueError) as err:
