@@ -33,11 +33,14 @@ from masspush.real import paired_test, posterior_accuracy
 
 def classifier_result(path: Path, pushes: int | None) -> tuple[float, list[int]] | None:
     """The protocol's accuracy on the recording and each episode's predicted class index
-    (None where the summary is not beside it, or has no figure for `pushes`)."""
+    (None where the summary is not beside it, has no arm named as the file, `random.jsonl`
+    or `learned.jsonl`, or has no figure for `pushes`)."""
     summary = path.parent / "summary.json"
     if not summary.is_file():
         return None
-    arm = json.loads(summary.read_text())["arms"]["learned"]
+    arm = json.loads(summary.read_text())["arms"].get(path.stem)
+    if arm is None:
+        return None
     if pushes is None:
         return arm["estimate"]["accuracy"], arm["estimate"]["predicted"]
     step = next((s for s in arm.get("by_runs", []) if s["pushes"] == pushes), None)
