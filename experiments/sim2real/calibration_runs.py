@@ -5,9 +5,9 @@ episodes. Given several recordings of the same lab (other chains: other seeds of
 `masspush sim2real --lab L --learned-model bayes`), this holds each recording out in turn,
 tunes the density on the others (`--calibrate all`, the default) or on each single other
 one (`--calibrate one`), and sorts the held-out recording's episodes by the tuned class
-posterior after 2 and 16 pushes and after all of them. With `--reference TUNED.pt` (a
-density tuned on a calibration recording apart from all of them) it also sorts each
-held-out recording with that, and tests the two on the same episodes (exact McNemar).
+posterior after 2 and 16 pushes and after all of them (`--pushes`). With `--reference
+TUNED.pt` (a density tuned on a calibration recording apart from all of them) it also sorts
+each held-out recording with that, and tests the two on the same episodes (exact McNemar).
 The tuned densities are kept in `--cache` and reused. For
 docs/notebook/2026-12-06-calibration-runs.md:
 
@@ -30,8 +30,9 @@ from masspush.data import read_recording
 from masspush.learn import load_push_density
 from masspush.real import TuneConfig, TuneDensityJob, paired_test, posterior_accuracy, tune
 
-PUSH_COUNTS = (2, 16, None)
-"""After how many pushes each held-out episode is sorted (None: all it has)."""
+PUSH_COUNTS = "2,16,all"
+"""After how many pushes each held-out episode is sorted by default (all: every push it has;
+`--pushes`)."""
 
 
 def tuned_on(setting: str, recordings: list[Path], cache: Path, config: TuneConfig) -> Path:
@@ -59,7 +60,19 @@ def main() -> None:
     parser.add_argument("--reference", type=Path, help="a density tuned apart from these")
     parser.add_argument("--cache", type=Path, default=Path("calibration-runs"))
     parser.add_argument("--steps", type=int, default=TuneConfig.steps)
+    parser.add_argument(
+        "--pushes",
+        default=PUSH_COUNTS,
+        help="after how many pushes to sort (comma-separated; 'all' is added)",
+    )
     args = parser.parse_args()
+    try:
+        counts = [None if p == "all" else int(p) for p in args.pushes.split(",")]
+    except ValueError:
+        parser.error(f"--pushes: positive integers or 'all', got {args.pushes!r}")
+    if any(p is not None and p < 1 for p in counts):
+        parser.error(f"--pushes: positive integers or 'all', got {args.pushes!r}")
+    counts = [p for p in counts if p is not None] + [None]
     if len(args.recordings) < 2:
         parser.error("name at least two recordings of the lab")
     for path in [*args.recordings, *([args.reference] if args.reference else [])]:
@@ -74,11 +87,11 @@ def main() -> None:
         recordings = {path: read_recording(path) for path in args.recordings}
     except (OSError, ValueError) as err:
         sys.exit(f"error: {err}")
-    columns = " | ".join(f"after {p or 'all'}" for p in PUSH_COUNTS)
+    columns = " | ".join(f"after {p or 'all'}" for p in counts)
     print(f"| held out | tuned on | {columns} | reference after all | only reference / only "
           "these right, p |")  # fmt: skip
-    print("|---" * (len(PUSH_COUNTS) + 4) + "|")
-    right = {p: [0, 0] for p in PUSH_COUNTS}
+    print("|---" * (len(counts) + 4) + "|")
+    right = {p: [0, 0] for p in counts}
     pooled: list[list[np.ndarray]] = [[], [], []]  # truth, these, reference's classes
     for held, recording in recordings.items():
         others = [p for p in recordings if p != held]
@@ -87,13 +100,13 @@ def main() -> None:
             try:
                 density = load_push_density(tuned_on(args.setting, group, args.cache, config))
                 scores = {p: posterior_accuracy(density, recording, str(held), p)
-                          for p in PUSH_COUNTS}  # fmt: skip
+                          for p in counts}  # fmt: skip
             except (OSError, ValueError) as err:
                 sys.exit(f"error: {err}")
             for p, s in scores.items():
                 right[p][0] += round(s["accuracy"] * len(recording.episodes))
                 right[p][1] += len(recording.episodes)
-            cells = [f"{100 * scores[p]['accuracy']:.1f} %" for p in PUSH_COUNTS]
+            cells = [f"{100 * scores[p]['accuracy']:.1f} %" for p in counts]
             ref_cells = ["-", "-"]
             if reference is not None:
                 ref = posterior_accuracy(reference, recording, str(held))

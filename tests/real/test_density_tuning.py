@@ -18,6 +18,7 @@ from masspush.real.density_tuning import (
     first_pushes,
     friction_grid,
     labelled_pushes,
+    push_ladder,
     tune_density,
 )
 
@@ -130,6 +131,13 @@ def test_first_pushes_keeps_each_episodes_first_ones(lab):
         assert len(e.actions) == len(p.actions)
 
 
+def test_push_ladder_doubles_below_the_longest_episode():
+    assert push_ladder(0) == push_ladder(2) == []
+    assert push_ladder(3) == [2]
+    assert push_ladder(32) == [2, 4, 8, 16]
+    assert push_ladder(33) == [2, 4, 8, 16, 32]
+
+
 def test_cross_validation_tunes_without_the_held_out_fold_and_counts_every_episode(lab):
     _, student, recording, _, _ = lab
     masses = np.array(list(CLASSES.values()))
@@ -149,6 +157,12 @@ def test_cross_validation_tunes_without_the_held_out_fold_and_counts_every_episo
                                 friction_grid(student, config.frictions))  # fmt: skip
     assert np.mean(one.argmax(1) == labels) == pytest.approx(first["untuned_accuracy"])
     assert not np.allclose(first["log_likelihoods"], log_lik)
+    assert first["by_pushes"] == []  # nothing shorter than one push to read
+    # the early readings are what the same folds give with the episodes cut short
+    assert [s["pushes"] for s in scores["by_pushes"]] == [2, 4]  # episodes of 8 pushes
+    two = cross_validate_tuning(student, labelled_pushes(recording), labels, masses, config,
+                                progress=False, count=2)  # fmt: skip
+    assert scores["by_pushes"][0]["accuracy"] == pytest.approx(two["accuracy"])
     with pytest.raises(ValueError, match="at least 7 episodes"):
         cross_validate_tuning(student, labelled_pushes(recording), labels, masses,
                               TuneConfig(folds=7), progress=False)  # fmt: skip
@@ -162,6 +176,7 @@ def test_tune_density_and_classify_commands(lab, tmp_path, capsys):
     assert main([*args, "--folds", "3", "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "3-fold cross-validated" in printed and "untuned density" in printed
+    assert "read from their first pushes only" in printed and "2: " in printed
     tuned = load_push_density(out).meta["tuned"]
     assert tuned["classes"] == {k: list(v) for k, v in sorted(CLASSES.items())}
     assert tuned["cross_validation"]["confusion"] is not None

@@ -318,6 +318,11 @@ def tune(job: TuneDensityJob, config: TuneConfig, progress: bool = True) -> list
             f"sorted by class posterior: untuned density {100 * scores['untuned_accuracy']:.1f} %, "
             f"tuned ({config.folds}-fold cross-validated) {100 * scores['accuracy']:.1f} % "
             f"(chance {100 * scores['chance']:.1f} %)",
+            "  held-out episodes read from their first pushes only (is a longer run worth it?): "
+            + ", ".join(
+                [f"{s['pushes']}: {100 * s['accuracy']:.1f} %" for s in scores["by_pushes"]]
+                + [f"all: {100 * scores['accuracy']:.1f} %"]
+            ),
             f"confusion (rows: truth, columns: predicted), classes in this order: {classes}",
             *("  " + " ".join(f"{v:4d}" for v in row) for row in scores["confusion"]),
         ]

@@ -228,18 +228,26 @@ def cross_validate_tuning(
     tuned on the other folds (on all their pushes; classes' `masses` (C, n), `labels` (E,)),
     each held-out episode read from its first `count` pushes (all with None): the accuracy,
     the confusion (rows: truth), each episode's out-of-fold class and class
-    log-likelihoods, and the untuned density's accuracy on the same episodes."""
+    log-likelihoods, the untuned density's accuracy on the same episodes, and
+    (`by_pushes`) the accuracy with each held-out episode read from only its first 2, 4,
+    8, ... pushes (`push_ladder`): how the sorting grows with the length of a run."""
     c = len(masses)
     counts = fold_counts(labels, c, config.folds)
     frictions = friction_grid(density, config.frictions)
     read = first_pushes(pushes, count)
     untuned = class_log_likelihoods(density, read, masses, frictions).argmax(1)
     log_lik = np.zeros((len(labels), c))
+    ladder = push_ladder(max((len(p.actions) for p in read), default=0))
+    hits = np.zeros((len(ladder), len(labels)), bool)
     for test in stratified_folds(labels, config.folds, config.seed):
         train = np.setdiff1d(np.arange(len(labels)), test)
         tuned = tune_density(density, [pushes[i] for i in train], masses[labels[train]],
                              config, progress)  # fmt: skip
         log_lik[test] = class_log_likelihoods(tuned, [read[i] for i in test], masses, frictions)
+        for row, step in enumerate(ladder):
+            early = first_pushes([read[i] for i in test], step)
+            guess = class_log_likelihoods(tuned, early, masses, frictions).argmax(1)
+            hits[row, test] = guess == labels[test]
     predicted = log_lik.argmax(1)
     confusion = np.zeros((c, c), np.int64)
     np.add.at(confusion, (labels, predicted), 1)
@@ -250,8 +258,22 @@ def cross_validate_tuning(
         "predicted": predicted.tolist(),
         "log_likelihoods": log_lik.tolist(),
         "chance": float(counts.max() / counts.sum()),
+        "by_pushes": [
+            {"pushes": step, "accuracy": float(row.mean())}
+            for step, row in zip(ladder, hits, strict=True)
+        ],
         "config": asdict(config),
     }
+
+
+def push_ladder(longest: int) -> list[int]:
+    """2, 4, 8, ... pushes, each shorter than the `longest` episode: the early readings
+    `cross_validate_tuning` reports (the full episodes are its main figure)."""
+    steps, step = [], 2
+    while step < longest:
+        steps.append(step)
+        step *= 2
+    return steps
 
 
 def pushes_per_episode(pushes: list[LabelledPush]) -> float:
