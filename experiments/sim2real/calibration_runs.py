@@ -68,11 +68,12 @@ def main() -> None:
     args = parser.parse_args()
     try:
         counts = [None if p == "all" else int(p) for p in args.pushes.split(",")]
+        if any(p is not None and p < 1 for p in counts):
+            raise ValueError
     except ValueError:
         parser.error(f"--pushes: positive integers or 'all', got {args.pushes!r}")
-    if any(p is not None and p < 1 for p in counts):
-        parser.error(f"--pushes: positive integers or 'all', got {args.pushes!r}")
-    counts = [p for p in counts if p is not None] + [None]
+    # each count once (a repeated one would add a column and no total), all of them last
+    counts = [*dict.fromkeys(p for p in counts if p is not None), None]
     if len(args.recordings) < 2:
         parser.error("name at least two recordings of the lab")
     for path in [*args.recordings, *([args.reference] if args.reference else [])]:

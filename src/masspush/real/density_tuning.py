@@ -243,9 +243,10 @@ def cross_validate_tuning(
         train = np.setdiff1d(np.arange(len(labels)), test)
         tuned = tune_density(density, [pushes[i] for i in train], masses[labels[train]],
                              config, progress)  # fmt: skip
-        log_lik[test] = class_log_likelihoods(tuned, [read[i] for i in test], masses, frictions)
+        held = [read[i] for i in test]
+        log_lik[test] = class_log_likelihoods(tuned, held, masses, frictions)
         for row, step in enumerate(ladder):
-            early = first_pushes([read[i] for i in test], step)
+            early = first_pushes(held, step)
             guess = class_log_likelihoods(tuned, early, masses, frictions).argmax(1)
             hits[row, test] = guess == labels[test]
     predicted = log_lik.argmax(1)
