@@ -1,3 +1,4 @@
+import numpy as np
 import pytest
 
 from masspush.data.recording import Recording, write_recording
@@ -132,3 +133,17 @@ def test_bayes_options_reach_the_filter_and_bad_ones_are_refused_first(monkeypat
         SessionConfig(robot="stiff", setting=SETTING, model="bayes", bayes={"reach_from": -1})
     with pytest.raises(ValueError, match="as density"):
         SessionConfig(robot="stiff", setting=SETTING, model="bayes", bayes={"density": "x.pt"})
+
+
+def test_sessions_with_other_seeds_never_share_a_chain():
+    # Seed S + 1's chains were once seed S's shifted by one: a labelled calibration session
+    # and a "held-out" one then pushed the same chains.
+    starts = [
+        tuple(np.round(episode["observations"][0], 6))
+        for seed in (0, 1, 2)
+        for episode in run_session(
+            SessionConfig(robot="stiff", setting=SETTING, model="rp", count=3, seed=seed),
+            say=lambda _: None,
+        )
+    ]
+    assert len(set(starts)) == len(starts) == 9

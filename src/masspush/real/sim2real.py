@@ -62,6 +62,8 @@ class Sim2RealConfig:
     episodes_per_class: int = 30
     """Usable episodes (at least one push seen) per class and policy [paper: 30]."""
     seed: int = 0
+    """The chains' seed: both arms push the same chains; runs with other seeds never share
+    a chain."""
     world: str = "target"
     """"target": the sim-to-real target world; "training": the world the models were
     trained in (the control: what the protocol gives without any gap)."""
@@ -293,6 +295,15 @@ def _speed_reader(config: Sim2RealConfig):
     return speed_reader(setting.pusher, setting.physics())
 
 
+CLASS_SEEDS = 100_000
+"""Seeds each class's robot owns within a run (one or more per chain: a chain that cannot be
+placed is redrawn with the next)."""
+RUN_SEEDS = len(PAPER_CLASSES) * CLASS_SEEDS
+"""Seeds each run (`--seed`) owns, so that runs never share a chain. Before 2026-12-06 a
+run's chains began at `seed` itself, and seed S + 1's chains were seed S's shifted by one
+(docs/notebook/2026-12-06-overlapping-seeds.md); seed 0's chains are unchanged."""
+
+
 def class_robot(
     setting, c: int, seed: int = 0, world=None, lab: int | None = None, pushes: int | None = None
 ):  # fmt: skip
@@ -300,12 +311,13 @@ def class_robot(
     sim2real --seed SEED`: in the target world `world` (a `TargetWorld`; `lab` one lab of
     it), or with `world` None in the training world, there with room for `pushes` pushes.
     Seeds differ between classes but not between a run's arms or experiments that use
-    this: they see the same chains, frictions and biases, so comparisons are paired."""
+    this: they see the same chains, frictions and biases, so comparisons are paired; other
+    seeds see other chains (`RUN_SEEDS`)."""
     from masspush.real.backends import SimRobot
     from masspush.real.target_world import TargetWorldRobot
 
     masses = list(PAPER_CLASSES.values())[c]
-    first = seed + 100_000 * c
+    first = RUN_SEEDS * seed + CLASS_SEEDS * c
     if world is not None:
         return TargetWorldRobot(setting, world, seed=first, masses=masses, lab=lab)
     # The classes are the paper's masses in any setting, as in the target world.
