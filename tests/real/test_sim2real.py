@@ -92,6 +92,12 @@ def test_too_few_episodes_for_the_folds_are_refused():
         Sim2RealConfig(episodes_per_class=3)
 
 
+def test_a_negative_seed_is_refused_before_any_work():
+    # it used to fail inside the first episode with a message that named no argument
+    with pytest.raises(ValueError, match="seed must be an integer >= 0"):
+        Sim2RealConfig(seed=-1)
+
+
 def test_a_missing_recording_for_the_governor_is_refused_before_any_work(tmp_path):
     with pytest.raises(ValueError, match="governor_fit: no such recording"):
         Sim2RealConfig(governor_fit=str(tmp_path / "none.jsonl"))

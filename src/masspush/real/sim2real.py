@@ -149,6 +149,7 @@ class Sim2RealConfig:
                 raise ValueError(f"density: {err}") from None
         if self.tuned_density is not None:
             self.sorting_density()
+        check_int("seed", self.seed, low=0)
         check_int("lab", self.lab, low=0, optional=True)
         if self.start_range is not None and not 0 <= self.start_range <= 1:
             raise ValueError(f"start_range must be in [0, 1] m, got {self.start_range!r}")
