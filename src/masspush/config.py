@@ -51,12 +51,22 @@ def check_match(
     raise MismatchError(f"{where} is for {what} {theirs!r}, not {ours!r}{hint}")
 
 
-def check_int(name: str, value: Any, low: int = 1, optional: bool = False) -> None:
-    """Raise ValueError unless value is an integer >= low (or None, where `optional`)."""
+SEED_MAX = 2**32 - 1
+"""The largest seed a run or session takes: its chains' seeds are the seed times a block of
+a million or fewer, times the runs of an episode, and must fit the policies' 64-bit seeds."""
+
+
+def check_int(
+    name: str, value: Any, low: int = 1, optional: bool = False, high: int | None = None
+) -> None:
+    """Raise ValueError unless value is an integer >= low, and <= high where given (or None,
+    where `optional`)."""
     if optional and value is None:
         return
     if not isinstance(value, int) or isinstance(value, bool) or value < low:
         raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
+    if high is not None and value > high:
+        raise ValueError(f"{name} must be an integer <= {high}, got {value!r}")
 
 
 def check_choice(name: str, value: Any, choices: tuple, optional: bool = False) -> None:

@@ -147,3 +147,9 @@ def test_sessions_with_other_seeds_never_share_a_chain():
         )
     ]
     assert len(set(starts)) == len(starts) == 9
+
+
+def test_a_seed_too_large_for_its_chains_is_refused_first():
+    # its chains' seeds (a million a session) would overflow the policies' 64-bit seeds
+    with pytest.raises(ValueError, match="seed must be an integer <= 4294967295"):
+        SessionConfig(robot="stiff", setting=SETTING, model="rp", seed=2**32)

@@ -8,6 +8,8 @@ import torch
 from masspush.data.recording import read_recording
 from masspush.real.finetune import PAPER_CLASSES, ClassifierConfig
 from masspush.real.sim2real import (
+    CLASS_SEEDS,
+    RUN_SEEDS,
     Sim2RealConfig,
     class_robot,
     paired_answers,
@@ -96,6 +98,8 @@ def test_a_negative_seed_is_refused_before_any_work():
     # it used to fail inside the first episode with a message that named no argument
     with pytest.raises(ValueError, match="seed must be an integer >= 0"):
         Sim2RealConfig(seed=-1)
+    with pytest.raises(ValueError, match="seed must be an integer <= 4294967295"):
+        Sim2RealConfig(seed=2**32)  # its chains' seeds would overflow the policies' 64 bits
 
 
 def test_a_missing_recording_for_the_governor_is_refused_before_any_work(tmp_path):
@@ -410,7 +414,7 @@ def test_each_class_s_robot_pushes_that_class_s_chains_in_the_world_asked():
     lab = class_robot(setting, 3, seed=5, world=TargetWorld(), lab=2)
     try:
         assert isinstance(training, SimRobot) and isinstance(lab, TargetWorldRobot)
-        assert training.seed == lab.seed  # the same chains in either world
+        assert training.seed == lab.seed == 5 * RUN_SEEDS + 3 * CLASS_SEEDS  # sim2real --seed 5
         for robot in (training, lab):
             robot.start()
             np.testing.assert_allclose(robot.truth["masses"], list(PAPER_CLASSES.values())[3])

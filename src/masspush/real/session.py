@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from masspush.bayes.estimator import BAYES_MODELS
-from masspush.config import check_input, check_int, check_match, check_output
+from masspush.config import SEED_MAX, check_input, check_int, check_match, check_output
 from masspush.data.recording import Recording, read_recording, write_recording
 from masspush.learn.policy import model_policy
 from masspush.learn.predictor import load_model
@@ -91,7 +91,7 @@ class SessionConfig:
             raise ValueError(f"robot must be one of {list(known)}, got {self.robot!r}")
         check_int("count", self.count, optional=True)
         check_int("pushes", self.pushes, optional=True)
-        check_int("seed", self.seed, 0)
+        check_int("seed", self.seed, 0, high=SEED_MAX)
         check_int("segments", self.segments)
         check_int("lab", self.lab, 0, optional=True)
         if self.lab is not None and self.robot != "target":
@@ -152,8 +152,9 @@ def run_session(config: SessionConfig, say=print) -> list[dict]:
     if not config.read_speeds:
         read_speed = None
     pushes = setting.env_config().pushes if config.pushes is None else config.pushes
+    first = SESSION_SEEDS * config.seed
     robot = make_robot(
-        config.robot, setting, config.episodes_file, SESSION_SEEDS * config.seed,
+        config.robot, setting, config.episodes_file, first,
         config.masses, config.lab, config.allow_out_of_range, pushes * config.segments,
     )  # fmt: skip
     if robot.n_links != setting.n_links:
@@ -196,7 +197,7 @@ def run_session(config: SessionConfig, say=print) -> list[dict]:
             say(f"episode {i + 1}:")
             episode = run_segments(
                 robot, predictor, policy, episode_pushes[i], config.segments, print_push,
-                seed=SESSION_SEEDS * config.seed + i, read_speed=read_speed,
+                seed=first + i, read_speed=read_speed,
             )  # fmt: skip
             if len(episode.run_estimates) > 1 and filter_arm is None:
                 mean = np.mean(episode.run_estimates, axis=0)

@@ -25,7 +25,7 @@ from tqdm import tqdm
 
 from masspush.bayes.estimator import BAYES_MODELS
 from masspush.cluster.pool import Workers, check_address, gather, is_pool, open_pool
-from masspush.config import check_int
+from masspush.config import SEED_MAX, check_int
 from masspush.real.density_tuning import check_calibration_length, posterior_accuracy
 from masspush.real.filter_arm import FilterArm, check_bayes_options
 from masspush.real.finetune import (
@@ -149,7 +149,7 @@ class Sim2RealConfig:
                 raise ValueError(f"density: {err}") from None
         if self.tuned_density is not None:
             self.sorting_density()
-        check_int("seed", self.seed, low=0)
+        check_int("seed", self.seed, low=0, high=SEED_MAX)
         check_int("lab", self.lab, low=0, optional=True)
         if self.start_range is not None and not 0 <= self.start_range <= 1:
             raise ValueError(f"start_range must be in [0, 1] m, got {self.start_range!r}")
