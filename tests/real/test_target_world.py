@@ -72,6 +72,15 @@ def test_tracking_bias_is_held_for_an_episode_and_drawn_anew_for_the_next():
     assert not np.allclose(next_start.config - r.sim.config(), errors[0], atol=1e-5)
 
 
+def test_observing_again_sees_the_chain_where_the_last_push_left_it():
+    r = robot(TargetWorld(obs_noise=0.0))
+    seen = r.start()
+    np.testing.assert_array_equal(r.observe(), seen.config)
+    report = r.push(np.array([0.5, 0.2]))
+    np.testing.assert_array_equal(r.observe(), report.config)
+    assert not np.allclose(report.config, seen.config, atol=1e-3)
+
+
 def test_actuation_has_a_per_episode_gain_and_contact_bias():
     r = robot(TargetWorld(action_noise=0.0))
     r.start()

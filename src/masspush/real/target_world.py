@@ -387,7 +387,7 @@ class TargetWorldRobot:
             "config": self.sim.config(),
             "lengths": np.array(chain.lengths),
         }
-        return RestPose(self._observe(), told.astype(np.float32))
+        return RestPose(self.observe(), told.astype(np.float32))
 
     def push(self, action: np.ndarray) -> PushReport:
         assert self.sim is not None, "start() first"
@@ -400,7 +400,16 @@ class TargetWorldRobot:
         speed = outcome.executed_speed
         if outcome.failure is not None:
             return PushReport(None, outcome.failure, details, speed)
-        return PushReport(self._observe(), None, details, speed)
+        return PushReport(self.observe(), None, details, speed)
+
+    def observe(self) -> np.ndarray:
+        """The chain's pose as this lab's tracker reports it now (its bias and noise), wherever
+        the last push left it (after a failed push too)."""
+        assert self.sim is not None
+        config = self.sim.config() + self.bias
+        config = config + self.rng.normal(0, self.world.obs_noise, config.shape)
+        config[2] = wrap_angle(config[2])
+        return config.astype(np.float32)
 
     def close(self) -> None:
         self.sim = None
@@ -433,10 +442,3 @@ class TargetWorldRobot:
         assert sim is not None
         xy = sim.data.geom_xpos[self._boxes, :2]
         sim.model.geom_friction[self._boxes, 0] = self.field(xy)
-
-    def _observe(self) -> np.ndarray:
-        assert self.sim is not None
-        config = self.sim.config() + self.bias
-        config = config + self.rng.normal(0, self.world.obs_noise, config.shape)
-        config[2] = wrap_angle(config[2])
-        return config.astype(np.float32)
