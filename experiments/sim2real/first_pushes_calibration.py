@@ -36,21 +36,15 @@ from masspush.real import (
     paired_test,
     posterior_accuracy,
     tune_density,
+    tuned_classes,
 )
 
 
-def tuned_on_first(calibration: list[Path], pushes: int, start: Path):
-    """`start` tuned on the calibration episodes' first `pushes` pushes."""
-    merged = None
-    for path in calibration:
-        part = read_recording(path)
-        if merged is None:
-            merged = Recording(part.n_links, setting=part.setting)
-        merged.episodes += part.episodes
+def tuned_on_first(merged: Recording, pushes: int, density):
+    """`density` tuned on the calibration episodes' first `pushes` pushes."""
     labels, classes = labelled(merged)
     masses = class_masses(merged, classes)
     cut = first_pushes(labelled_pushes(merged), pushes)
-    density = load_push_density(start)
     config = TuneConfig(folds=0)
     tuned = tune_density(density, cut, masses[labels], config)
     tuned.meta["tuned"] = {
@@ -74,14 +68,26 @@ def main() -> None:
     for path in [*args.calibration, *args.tests, args.compare]:
         if not path.is_file():
             parser.error(f"no such file: {path}")
-    start = args.density or shipped_density("real-ur10")
-    first = tuned_on_first(args.calibration, args.pushes, start)
-    whole = load_push_density(args.compare)
+    try:  # every input read and checked before the tuning
+        calibration = [read_recording(path) for path in args.calibration]
+        tests = [read_recording(path) for path in args.tests]
+        whole = load_push_density(args.compare)
+        classes, _ = tuned_classes(whole, str(args.compare))
+        start = load_push_density(args.density or shipped_density("real-ur10"))
+    except (OSError, ValueError) as err:
+        parser.error(str(err).splitlines()[0])
+    merged = Recording(calibration[0].n_links, setting=calibration[0].setting)
+    for part in calibration:
+        merged.episodes += part.episodes
+    for path, recording in zip(args.tests, tests, strict=True):
+        unknown = sorted({str(label) for label in recording.labels} - set(classes))
+        if unknown:
+            parser.error(f"{path}: classes {unknown} are not {args.compare}'s {classes}")
+    first = tuned_on_first(merged, args.pushes, start)
     truth_all, first_all, whole_all = [], [], []
     print(f"| test recording | episodes | first {args.pushes} pushes tuned | {args.compare.name} |")
     print("|---|---|---|---|")
-    for path in args.tests:
-        recording = read_recording(path)
+    for path, recording in zip(args.tests, tests, strict=True):
         a = posterior_accuracy(first, recording, str(path), args.pushes)
         b = posterior_accuracy(whole, recording, str(path), args.pushes)
         truth = np.array([a["classes"].index(label) for label in recording.labels])

@@ -45,16 +45,20 @@ from masspush.real import (
     speed_reader,
 )
 from masspush.settings import get_setting
-from masspush.sim import reach_check, reach_governor
+from masspush.sim import ReachCheck, reach_governor
 
 
 class LastPushFree:
-    """A target-world robot whose governor lets the `pushes`-th push of each episode go
-    unslowed, and which observes the chain wherever that push leaves it."""
+    """A target-world robot whose governor, where `free`, lets the `pushes`-th push of each
+    episode go unslowed, and which observes the chain wherever that push leaves it."""
 
-    def __init__(self, robot, governor, pushes: int):
-        self.robot, self.base, self.pushes = robot, governor, pushes
+    def __init__(self, robot, governor, pushes: int, free: bool):
+        self.robot, self.base, self.pushes, self.free = robot, governor, pushes, free
         self.n_links, self.k = robot.n_links, 0
+
+    def last(self) -> bool:
+        """Whether the push about to be made is a free last push."""
+        return self.free and self.k == self.pushes - 1
 
     @property
     def seed(self) -> int:
@@ -65,7 +69,7 @@ class LastPushFree:
         return self.robot.truth
 
     def governor(self, action, config, lengths) -> np.ndarray:
-        if self.k == self.pushes - 1:
+        if self.last():
             return np.asarray(action, np.float32)
         return self.base(action, config, lengths)
 
@@ -74,9 +78,10 @@ class LastPushFree:
         return self.robot.start()
 
     def push(self, action) -> PushReport:
+        last = self.last()
         report = self.robot.push(action)
         self.k += 1
-        if report.failure == "left_workspace" and self.k == self.pushes:
+        if report.failure == "left_workspace" and last:
             # No push follows: the chain at rest out of reach is seen all the same.
             details = {**report.details, "outside": True}
             report = PushReport(self.robot.observe(), None, details, report.speed)
@@ -86,11 +91,7 @@ class LastPushFree:
         self.robot.close()
 
 
-def run_arm(args, free: bool, path: Path) -> dict:
-    setting = get_setting("real-ur10")
-    overrides = {**setting.overrides, "root_xy_range": args.start_range}
-    setting = dataclasses.replace(setting, overrides=overrides)
-    governor = fit_governor(reach_governor(setting.pusher, setting.physics()), args.governor_fit)
+def run_arm(args, setting, governor, free: bool, path: Path) -> dict:
     read = speed_reader(setting.pusher, setting.physics())
     recording = Recording(n_links=setting.n_links, robot=f"lab {args.lab}, free={free}",
                           setting=setting.name)  # fmt: skip
@@ -98,10 +99,10 @@ def run_arm(args, free: bool, path: Path) -> dict:
     bar = tqdm(total=len(PAPER_CLASSES) * args.per_class, desc=path.stem)
     for c, label in enumerate(PAPER_CLASSES):
         base = class_robot(setting, c, args.seed, TargetWorld(), args.lab, args.pushes)
-        robot = LastPushFree(base, governor, args.pushes if free else args.pushes + 1)
+        robot = LastPushFree(base, governor, args.pushes, free)
         arm = FilterArm.load("bayes", setting, args.seed, args.density)
         arm.governor = robot.governor
-        arm.reach_check = reach_check(setting.pusher, setting.physics())
+        arm.reach_check = ReachCheck(setting.pusher, setting.physics())
         for i in range(args.per_class):
             episode = run_segments(robot, arm, arm, args.pushes, 1, seed=robot.seed,
                                    read_speed=read)  # fmt: skip
@@ -143,19 +144,35 @@ def main() -> None:
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args()
     torch.set_num_threads(1)  # the filter's small network calls only wait on a pool
+    if args.per_class < 1 or args.pushes < 1:
+        parser.error("--per-class and --pushes must be >= 1")
     if not args.governor_fit.is_file():
         parser.error(f"--governor-fit: no such recording {args.governor_fit}")
     for density in args.sort_with:
         if not density.is_file():
             parser.error(f"--sort-with: no such push density {density}")
-    args.out.mkdir(parents=True, exist_ok=True)
+    setting = get_setting("real-ur10")
+    overrides = {**setting.overrides, "root_xy_range": args.start_range}
+    setting = dataclasses.replace(setting, overrides=overrides)
+    try:
+        governor = fit_governor(
+            reach_governor(setting.pusher, setting.physics()), args.governor_fit
+        )
+    except ValueError as err:
+        parser.error(f"--governor-fit: {str(err).splitlines()[0]}")
+    try:
+        args.out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        parser.error(f"--out: {err}")
     summary = {"args": {k: str(v) for k, v in vars(args).items()}}
     probe = args.out / "probe.json"
     done = json.loads(probe.read_text()) if probe.is_file() else {}
     for name in ("governed", "free"):
         path = args.out / f"{name}.jsonl"
         summary[name] = (
-            done[name] if name in done and path.is_file() else run_arm(args, name == "free", path)
+            done[name]
+            if name in done and path.is_file()
+            else run_arm(args, setting, governor, name == "free", path)
         )
         print(name, json.dumps(summary[name]))
     probe.write_text(json.dumps(summary, indent=1) + "\n")
