@@ -74,7 +74,7 @@ def test_randomise_collects_fine_tunes_and_names_the_result(tmp_path, capsys):
 
 
 def test_randomise_passes_the_policy_training_on(tmp_path, monkeypatch, capsys):
-    import masspush.real.randomise
+    import masspush.real.randomisation
 
     seen = {}
 
@@ -82,7 +82,7 @@ def test_randomise_passes_the_policy_training_on(tmp_path, monkeypatch, capsys):
         seen.update(config=config, out=out)
         return tmp_path / "p.pt"
 
-    monkeypatch.setattr(masspush.real.randomise, "randomise", fake)
+    monkeypatch.setattr(masspush.real.randomisation, "randomise", fake)
     main(["randomise", "--setting", "2link-1-10", "--policy-steps", "500", "--envs", "3"])
     assert (seen["config"].policy_steps, seen["config"].policy_envs) == (500, 3)
     assert seen["config"].shipped_name == "tp+drp"
@@ -98,7 +98,7 @@ def test_randomise_passes_the_policy_training_on(tmp_path, monkeypatch, capsys):
 def test_a_warning_is_one_line_said_once(monkeypatch, capsys):
     import warnings
 
-    import masspush.real.randomise
+    import masspush.real.randomisation
 
     def fake(config, out, workers, ship):
         for line in (1, 2):  # two places in masspush say the same
@@ -106,7 +106,7 @@ def test_a_warning_is_one_line_said_once(monkeypatch, capsys):
                                    "f.py", line, module="masspush.learn.push_density")  # fmt: skip
         return "p.pt"
 
-    monkeypatch.setattr(masspush.real.randomise, "randomise", fake)
+    monkeypatch.setattr(masspush.real.randomisation, "randomise", fake)
     main(["randomise", "--setting", "2link-1-10"])
     err = capsys.readouterr().err
     assert err == "masspush randomise: warning: density trained on executed pushes second line\n"

@@ -280,7 +280,7 @@ def test_an_untrained_policy_starts_at_the_initial_action(algo, predictor_file, 
 def test_the_policy_environment_pushes_in_another_world(predictor_file):
     from functools import partial
 
-    from masspush.real.randomise import world_env
+    from masspush.real.randomisation import world_env
     from masspush.real.target_world import TargetWorld
 
     setting = get_setting("2link-0.1-1")

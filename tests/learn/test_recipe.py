@@ -17,7 +17,7 @@ from masspush.learn.predictor import (
 )
 from masspush.learn.recipe import FINAL_FINETUNE, FINETUNE, PREDICTOR, Recipe, RecipeConfig
 from masspush.models import evaluate_model
-from masspush.reports.reproduce import (
+from masspush.reports.reproduction import (
     collect_rows,
     recipe_summary,
     ship_recipe,

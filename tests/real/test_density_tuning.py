@@ -8,7 +8,7 @@ from masspush.cli import main
 from masspush.data.recording import Recording, read_recording, write_recording
 from masspush.learn.push_density import PushDensity, load_push_density
 from masspush.models import shipped_file
-from masspush.real.classify import ClassifyJob, classify_by_posterior
+from masspush.real.classifier_jobs import ClassifyJob, classify_by_posterior
 from masspush.real.density_tuning import (
     CalibrationWarning,
     TuneConfig,

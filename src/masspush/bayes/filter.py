@@ -639,7 +639,7 @@ class InfoSeekingPolicy:
         self.rng = np.random.default_rng([seed, 37])
         self.reachable = None
         """`reachable(action, start, lengths)`, whether the robot can make a push
-        (`masspush.sim.reach_check`): the best candidate it can make is pushed (the best of
+        (`masspush.sim.arm_reach`): the best candidate it can make is pushed (the best of
         all where it can make none). None: the best, unasked."""
 
     def reset(self, episode: int) -> None:

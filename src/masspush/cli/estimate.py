@@ -13,13 +13,13 @@ GROUP = "estimate"
 
 
 def _demo_options(p: argparse.ArgumentParser) -> None:
-    from masspush.reports.demo import DemoConfig
+    from masspush.reports.demonstration import DemoConfig
 
     add_fields(p, DemoConfig)
 
 
 def _demo(args: argparse.Namespace) -> int:
-    from masspush.reports.demo import DemoConfig, demo
+    from masspush.reports.demonstration import DemoConfig, demo
 
     picture, *video = demo(build(DemoConfig, args))
     print(f"wrote {picture}  (rest poses, pushes and estimates)")

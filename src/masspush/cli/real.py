@@ -12,36 +12,36 @@ CLASSIFIER_FIELDS = ("folds", "features", "segment", "runs", "seed")
 
 
 def _finetune_options(p: argparse.ArgumentParser) -> None:
-    from masspush.real.classify import FinetuneJob
-    from masspush.real.finetune import ClassifierConfig
+    from masspush.real.classifier import ClassifierConfig
+    from masspush.real.classifier_jobs import FinetuneJob
 
     add_fields(p, FinetuneJob, required=("setting", "episodes"))
     add_fields(p, ClassifierConfig, only=CLASSIFIER_FIELDS)
 
 
 def _finetune(args: argparse.Namespace) -> int:
-    from masspush.real.classify import FinetuneJob, finetune
-    from masspush.real.finetune import ClassifierConfig
+    from masspush.real.classifier import ClassifierConfig
+    from masspush.real.classifier_jobs import FinetuneJob, finetune
 
     print("\n".join(finetune(build(FinetuneJob, args), build(ClassifierConfig, args))))
     return 0
 
 
 def _classify_options(p: argparse.ArgumentParser) -> None:
-    from masspush.real.classify import ClassifyJob
+    from masspush.real.classifier_jobs import ClassifyJob
 
     add_fields(p, ClassifyJob, required=("episodes",))
 
 
 def _classify(args: argparse.Namespace) -> int:
-    from masspush.real.classify import ClassifyJob, classify
+    from masspush.real.classifier_jobs import ClassifyJob, classify
 
     print("\n".join(classify(build(ClassifyJob, args))))
     return 0
 
 
 def _tune_density_options(p: argparse.ArgumentParser) -> None:
-    from masspush.real.classify import TuneDensityJob
+    from masspush.real.classifier_jobs import TuneDensityJob
     from masspush.real.density_tuning import TuneConfig
 
     add_fields(p, TuneDensityJob, required=("setting", "episodes"))
@@ -49,7 +49,7 @@ def _tune_density_options(p: argparse.ArgumentParser) -> None:
 
 
 def _tune_density(args: argparse.Namespace) -> int:
-    from masspush.real.classify import TuneDensityJob, tune
+    from masspush.real.classifier_jobs import TuneDensityJob, tune
     from masspush.real.density_tuning import TuneConfig
 
     print("\n".join(tune(build(TuneDensityJob, args), build(TuneConfig, args))))
@@ -57,8 +57,8 @@ def _tune_density(args: argparse.Namespace) -> int:
 
 
 def _sim2real_options(p: argparse.ArgumentParser) -> None:
-    from masspush.real.finetune import ClassifierConfig
-    from masspush.real.sim2real import Sim2RealConfig, Sim2RealJob
+    from masspush.real.classifier import ClassifierConfig
+    from masspush.real.transfer import Sim2RealConfig, Sim2RealJob
 
     add_fields(p, Sim2RealConfig, only=("setting", "episodes_per_class", "seed", "world",
                                         "severity", "lab", "start_range", "start_yaw",
@@ -71,8 +71,8 @@ def _sim2real_options(p: argparse.ArgumentParser) -> None:
 
 def _sim2real(args: argparse.Namespace) -> int:
     from masspush.bayes.filter import bayes_overrides
-    from masspush.real.finetune import ClassifierConfig
-    from masspush.real.sim2real import Sim2RealConfig, Sim2RealJob, sim2real
+    from masspush.real.classifier import ClassifierConfig
+    from masspush.real.transfer import Sim2RealConfig, Sim2RealJob, sim2real
 
     classifier = build(ClassifierConfig, args, prefix="classifier_")
     job = build(Sim2RealJob, args)
@@ -85,7 +85,7 @@ def _sim2real(args: argparse.Namespace) -> int:
 
 
 def _randomise_options(p: argparse.ArgumentParser) -> None:
-    from masspush.real.randomise import RandomiseConfig, RandomiseRun
+    from masspush.real.randomisation import RandomiseConfig, RandomiseRun
 
     add_fields(p, RandomiseConfig, only=("setting", "model", "episodes", "steps", "base_seed",
                                          "policy_steps", "policy_envs", "world", "lab"),
@@ -94,7 +94,7 @@ def _randomise_options(p: argparse.ArgumentParser) -> None:
 
 
 def _randomise(args: argparse.Namespace) -> int:
-    from masspush.real.randomise import RandomiseConfig, RandomiseRun, randomise_run
+    from masspush.real.randomisation import RandomiseConfig, RandomiseRun, randomise_run
 
     path = randomise_run(build(RandomiseConfig, args), build(RandomiseRun, args))
     print(f"randomised predictor: {path}")

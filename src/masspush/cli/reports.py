@@ -13,13 +13,13 @@ GROUP = "report"
 
 
 def _bayes_table_options(p: argparse.ArgumentParser) -> None:
-    from masspush.reports.bayes_table import BayesTableConfig
+    from masspush.reports.bayes_report import BayesTableConfig
 
     add_fields(p, BayesTableConfig)
 
 
 def _bayes_table(args: argparse.Namespace) -> int:
-    from masspush.reports.bayes_table import BayesTableConfig, bayes_table_run
+    from masspush.reports.bayes_report import BayesTableConfig, bayes_table_run
 
     print(bayes_table_run(build(BayesTableConfig, args)), end="")
     print("wrote results/bayes.md")

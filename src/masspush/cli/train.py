@@ -111,28 +111,28 @@ def _recipe(args: argparse.Namespace):
 
 
 def _train_options(p: argparse.ArgumentParser) -> None:
-    from masspush.reports.reproduce import TrainJob
+    from masspush.reports.reproduction import TrainJob
 
     add_fields(p, TrainJob, required=("setting",))
     _recipe_options(p)
 
 
 def _train(args: argparse.Namespace) -> int:
-    from masspush.reports.reproduce import TrainJob, train_setting
+    from masspush.reports.reproduction import TrainJob, train_setting
 
     print("\n".join(train_setting(build(TrainJob, args), _recipe(args))))
     return 0
 
 
 def _reproduce_options(p: argparse.ArgumentParser) -> None:
-    from masspush.reports.reproduce import ReproduceConfig
+    from masspush.reports.reproduction import ReproduceConfig
 
     add_fields(p, ReproduceConfig)
     _recipe_options(p)
 
 
 def _reproduce(args: argparse.Namespace) -> int:
-    from masspush.reports.reproduce import ReproduceConfig, reproduce
+    from masspush.reports.reproduction import ReproduceConfig, reproduce
 
     for path in reproduce(build(ReproduceConfig, args), _recipe(args)):
         print(f"wrote {path}")

@@ -72,7 +72,7 @@ class PushPolicyEnv(gym.Env):
     worker process of a SubprocVecEnv), frozen, on one thread.
 
     With `chain_env` (a `ChainEnvFactory`), the chains are those of the environment it makes
-    (another world, `masspush.real.randomise`) instead of the training simulation.
+    (another world, `masspush.real.randomisation`) instead of the training simulation.
 
     With `runs` > 1 an episode is that many runs of K pushes on one chain, as
     `masspush.real.robot.run_segments` deploys them: each run starts where the last left the

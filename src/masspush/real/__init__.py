@@ -1,8 +1,8 @@
 """The real-robot path: the robot interface (`robot`) and its backends (`backends`), a session
-through a robot (`session`), the classifier fine-tuned on real episodes (`finetune`,
-`classify`) and the particle filter's push density tuned to a lab (`density_tuning`), the
-sim-to-real test world (`target_world`, `sim2real`) and domain
-randomisation (`randomise`, `robot_env`), a stationary robot's speed governor fitted to a
+through a robot (`session`), the classifier fine-tuned on real episodes (`classifier`,
+`classifier_jobs`) and the particle filter's push density tuned to a lab (`density_tuning`), the
+sim-to-real test world (`target_world`, `transfer`) and domain
+randomisation (`randomisation`, `robot_env`), a stationary robot's speed governor fitted to a
 lab's pushes (`governor`), and the particle filter as an arm of the protocol (`filter_arm`).
 
 The names below are its public API (what experiments/ may import); those of the 0.1 module
@@ -17,10 +17,10 @@ EXPORTS = {
     "backends": ("BACKENDS", "RecordedPolicy", "ReplayMismatchError", "ReplayRobot", "SimRobot",
                  "make_robot"),
     "session": ("SessionConfig", "run_session"),
-    "finetune": ("PAPER_CLASSES", "ClassifierConfig", "classifier_inputs", "cross_validate",
+    "classifier": ("PAPER_CLASSES", "ClassifierConfig", "classifier_inputs", "cross_validate",
                  "episode_log_probs", "fit_classifier", "labelled", "predictor_features",
                  "start_pose_control", "start_pose_features", "stratified_folds"),
-    "classify": (
+    "classifier_jobs": (
         "ClassifyJob", "FinetuneJob", "TuneDensityJob", "check_recording_fits", "classify",
         "classify_by_posterior", "finetune", "read_with_predictor", "tune",
     ),
@@ -31,12 +31,12 @@ EXPORTS = {
                        "pushes_per_episode", "tune_density", "tuned_classes"),
     "target_world": ("TRAINING_KNOBS", "Lab", "TargetWorld", "TargetWorldRobot", "WorldRanges",
                      "scaled_world"),
-    "sim2real": ("ARMS", "FEATURE_KINDS", "FEATURE_NAMES", "Sim2RealConfig", "Sim2RealJob",
+    "transfer": ("ARMS", "FEATURE_KINDS", "FEATURE_NAMES", "Sim2RealConfig", "Sim2RealJob",
                  "arm_feature_kinds", "class_episodes", "class_robot", "episode_id",
                  "paired_answers", "paired_test",
                  "plot_accuracy_by_pushes", "record_arm", "record_classes", "run_sim2real",
                  "score_arm", "sim2real"),
-    "randomise": ("RandomiseConfig", "RandomiseRun", "randomise", "run_randomised"),
+    "randomisation": ("RandomiseConfig", "RandomiseRun", "randomise", "run_randomised"),
     "robot_env": ("RobotEnv",),
     "governor": ("episode_pushes", "fit_governor", "recording_pushes"),
     "filter_arm": ("FilterArm",),

@@ -36,7 +36,7 @@ from masspush.bayes.hypotheses import grid_inside
 from masspush.config import check_int
 from masspush.data.recording import Recording
 from masspush.learn.push_density import PushDensity, push_inputs, push_outputs
-from masspush.real.finetune import fold_counts, one_thread, stratified_folds
+from masspush.real.classifier import fold_counts, one_thread, stratified_folds
 
 ROWS_PER_PASS = 20_000
 """Pushes x frictions the network evaluates at once."""

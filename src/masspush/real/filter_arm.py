@@ -87,7 +87,7 @@ class FilterArm:
 
     @property
     def reach_check(self):
-        """Whether the robot can make a push (`masspush.sim.reach_check.ReachCheck`), asked
+        """Whether the robot can make a push (`masspush.sim.arm_reach.ReachCheck`), asked
         of the candidates best first; None: the best is pushed unasked."""
         return None if self.seeking is None else self.seeking.reachable
 

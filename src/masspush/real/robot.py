@@ -244,7 +244,7 @@ def run_segments(
 ) -> EstimationEpisode:
     """`segments` episodes of `pushes` pushes in a row on the same chain, each starting where
     the last one left it, the policy and the predictor starting afresh each time: one
-    episode of up to segments x pushes pushes (`masspush.real.finetune.segments_of` cuts it back).
+    episode of up to segments x pushes pushes (`masspush.real.classifier.segments_of` cuts it back).
     Its estimates are each segment's own. With one segment this is `run_estimation`.
 
     A policy trained on episodes of several runs (its `runs`, `PolicyConfig.runs`) keeps its

@@ -180,7 +180,7 @@ def scaled_world(severity: float, world: TargetWorld | None = None) -> TargetWor
 
 @dataclass(frozen=True)
 class WorldRanges:
-    """A distribution over target worlds, for domain randomisation (`masspush.real.randomise`):
+    """A distribution over target worlds, for domain randomisation (`masspush.real.randomisation`):
     each episode draws its own `TargetWorld`. Every range holds both the training world's
     value and the target world's, with room on either side, as a lab would pick ranges wide
     enough for what it does not know about its own setup [ours, each]."""

@@ -1,7 +1,7 @@
 """The simulation: chains on a table (`chain`), actions to pushes (`actions`), one chain
 pushed to rest (`simulate`) or many in lockstep (`batch`), the pushers (`pushers`), where a
 stationary robot reaches (`workspace`) and whether its arm can make a push
-(`reach_check`), and how trustworthy a simulated rest pose is
+(`arm_reach`), and how trustworthy a simulated rest pose is
 (`convergence`). No learning, no torch.
 
 The names below are its public API (what experiments/ may import)."""
@@ -17,7 +17,7 @@ EXPORTS = {
                 "pusher_kind", "reach_governor", "SpeedEquivalent", "speed_equivalent"),
     "convergence": ("format_table", "validate_physics"),
     "workspace": ("ReachGovernor", "Workspace", "fit_slides", "push_slides"),
-    "reach_check": ("ReachCheck", "reach_check"),
+    "arm_reach": ("ReachCheck", "reach_check"),
 }  # fmt: skip
 __getattr__ = lazy(__name__, EXPORTS)
 __all__ = names(EXPORTS)

@@ -26,9 +26,7 @@ from tqdm import tqdm
 from masspush.bayes.estimator import BAYES_MODELS
 from masspush.cluster.pool import Workers, check_address, gather, is_pool, open_pool
 from masspush.config import SEED_MAX, check_int
-from masspush.real.density_tuning import check_calibration_length, posterior_accuracy
-from masspush.real.filter_arm import FilterArm, check_bayes_options
-from masspush.real.finetune import (
+from masspush.real.classifier import (
     FEATURE_KINDS,
     PAPER_CLASSES,
     ClassifierConfig,
@@ -40,6 +38,8 @@ from masspush.real.finetune import (
     predictor_features,
     start_pose_control,
 )
+from masspush.real.density_tuning import check_calibration_length, posterior_accuracy
+from masspush.real.filter_arm import FilterArm, check_bayes_options
 from masspush.sim.simulate import REACH_FAILURES
 
 if TYPE_CHECKING:
@@ -92,7 +92,7 @@ class Sim2RealConfig:
     its models were trained. Only for a setting whose robot stands still."""
     check_reach: bool = False
     """The particle-filter arm asks the robot's planner whether it can make a push before
-    choosing it (`masspush.sim.reach_check`), as a robot that knows its inverse kinematics
+    choosing it (`masspush.sim.arm_reach`), as a robot that knows its inverse kinematics
     would, and pushes the best candidate it can make; off: the best candidate, unasked, as
     every figure before 2026-12-05 was measured. Only for a filter arm on a stationary
     robot."""
@@ -405,7 +405,7 @@ def _record_class(shared: tuple, c: int, advance=None) -> tuple[list, dict, dict
     if isinstance(policy, FilterArm):  # its candidates compared as this robot makes them
         policy.governor = robot.governor
         if config.check_reach:  # by the robot's planner, which knows the setting's chain
-            from masspush.sim.reach_check import reach_check
+            from masspush.sim.arm_reach import reach_check
 
             policy.reach_check = reach_check(setting.pusher, setting.physics())
     read_speed = _speed_reader(config)

@@ -1,5 +1,5 @@
 """`masspush finetune`, `masspush tune-density` and `masspush classify`: the paper's
-real-robot adaptation from a recording of labelled episodes (`masspush.real.finetune` holds
+real-robot adaptation from a recording of labelled episodes (`masspush.real.classifier` holds
 the classifier itself, `masspush.real.density_tuning` the push density tuned to a lab)."""
 
 from __future__ import annotations
@@ -15,17 +15,7 @@ from masspush.data.recording import Recording, iter_recording, read_recording
 from masspush.learn.predictor import check_batch_memory, load_model
 from masspush.learn.push_density import DENSITY_BYTES_PER_PUSH, density_for, load_push_density
 from masspush.models import resolve_model, shipped_density
-from masspush.real.density_tuning import (
-    TuneConfig,
-    check_calibration_length,
-    class_masses,
-    cross_validate_tuning,
-    labelled_pushes,
-    posterior_classes,
-    pushes_per_episode,
-    tune_density,
-)
-from masspush.real.finetune import (
+from masspush.real.classifier import (
     ClassifierConfig,
     classifier_inputs,
     cross_validate,
@@ -37,6 +27,16 @@ from masspush.real.finetune import (
     load_classifier,
     save_classifier,
     start_pose_control,
+)
+from masspush.real.density_tuning import (
+    TuneConfig,
+    check_calibration_length,
+    class_masses,
+    cross_validate_tuning,
+    labelled_pushes,
+    posterior_classes,
+    pushes_per_episode,
+    tune_density,
 )
 from masspush.real.robot import check_geometry, model_speed_reader
 from masspush.settings import get_setting

@@ -2,7 +2,7 @@ from types import SimpleNamespace
 
 import pytest
 
-import masspush.reports.reproduce as reproduce
+import masspush.reports.reproduction as reproduce
 from masspush.settings import get_setting
 
 

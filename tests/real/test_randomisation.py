@@ -5,7 +5,12 @@ import numpy as np
 import pytest
 
 from masspush.data.dataset import shard_path
-from masspush.real.randomise import RandomiseConfig, collect_randomised, randomise, run_randomised
+from masspush.real.randomisation import (
+    RandomiseConfig,
+    collect_randomised,
+    randomise,
+    run_randomised,
+)
 from masspush.real.target_world import TargetWorld, TargetWorldRobot, WorldRanges
 
 SETTING = "2link-1-10"  # the stiff pusher keeps these tests fast
@@ -170,7 +175,7 @@ def test_episodes_can_come_from_the_target_world_itself_but_do_not_ship(tmp_path
 @pytest.mark.slow
 def test_the_policy_can_be_trained_on_in_randomised_worlds(tmp_path):
     from masspush.models import model_and_policy
-    from masspush.real.randomise import SHIPPED_POLICY_NAME
+    from masspush.real.randomisation import SHIPPED_POLICY_NAME
 
     config = replace(TINY, policy_steps=8, policy_envs=1, policy_rollout=4)
     assert config.shipped_name == SHIPPED_POLICY_NAME

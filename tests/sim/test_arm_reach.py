@@ -2,9 +2,9 @@ import numpy as np
 import pytest
 
 from masspush.settings import get_setting
+from masspush.sim.arm_reach import ReachCheck, reach_check
 from masspush.sim.chain import ChainParams
 from masspush.sim.pushers import make_pusher
-from masspush.sim.reach_check import ReachCheck, reach_check
 from masspush.sim.simulate import ChainSim
 
 SETTING = get_setting("real-ur10")  # the UR10 standing at (0, -0.7), facing +y

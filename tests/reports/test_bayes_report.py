@@ -1,5 +1,5 @@
-import masspush.reports.bayes_table as bayes_table_module
-from masspush.reports.bayes_table import bayes_table, filter_settings
+import masspush.reports.bayes_report as bayes_table_module
+from masspush.reports.bayes_report import bayes_table, filter_settings
 
 
 def fake_evaluate(calls):
@@ -64,7 +64,7 @@ def test_a_measurement_from_before_the_arm_model_counts_only_where_it_still_hold
 ):
     import json
 
-    from masspush.reports.bayes_table import ADDED_SETTINGS, measure
+    from masspush.reports.bayes_report import ADDED_SETTINGS, measure
 
     calls = []
     monkeypatch.setattr(bayes_table_module, "run_model", fake_evaluate(calls))
@@ -86,7 +86,7 @@ def test_a_measurement_from_before_the_arm_model_counts_only_where_it_still_hold
 def test_a_filter_measurement_without_episodes_is_measured_again_for_pairing(tmp_path, monkeypatch):
     import json
 
-    from masspush.reports.bayes_table import measure
+    from masspush.reports.bayes_report import measure
 
     calls = []
     monkeypatch.setattr(bayes_table_module, "run_model", fake_evaluate(calls))
@@ -99,7 +99,7 @@ def test_a_filter_measurement_without_episodes_is_measured_again_for_pairing(tmp
 
 
 def test_a_learned_models_measurement_is_redone_once_its_files_change(tmp_path, monkeypatch):
-    from masspush.reports.bayes_table import measure
+    from masspush.reports.bayes_report import measure
 
     calls = []
     monkeypatch.setattr(bayes_table_module, "run_model", fake_evaluate(calls))
@@ -118,7 +118,7 @@ def test_the_model_files_digest_covers_predictor_policy_and_head(tmp_path, monke
 
     import masspush.models as models_module
     from masspush.models import SHIPPED_DIR
-    from masspush.reports.bayes_table import model_files_digest
+    from masspush.reports.bayes_report import model_files_digest
 
     models = tmp_path / "models"
     shutil.copytree(SHIPPED_DIR / "2link-1-10", models / "2link-1-10")

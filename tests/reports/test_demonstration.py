@@ -5,7 +5,7 @@ from masspush.config import EnvConfig
 from masspush.env import ChainEnv
 from masspush.learn.predictor import ModelMismatchError
 from masspush.models import resolve_model
-from masspush.reports.demo import DEMO_SETTING, draw_demo, run_demo
+from masspush.reports.demonstration import DEMO_SETTING, draw_demo, run_demo
 
 
 def test_the_shipped_tp_plus_policy_pushes_and_the_estimate_follows_each_push(tmp_path):

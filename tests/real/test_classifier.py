@@ -7,7 +7,7 @@ from masspush.data.rollout import RandomPolicy
 from masspush.learn.predictor import load_model
 from masspush.models import resolve_model
 from masspush.real.backends import SimRobot
-from masspush.real.finetune import (
+from masspush.real.classifier import (
     ClassifierConfig,
     classifier_inputs,
     cross_validate,
@@ -172,7 +172,7 @@ def test_an_unfinished_run_counts_with_the_pushes_it_saw(tmp_path):
     features = predictor_features(predictor, episodes, "estimate", segment=2)
     first_run = predictor_features(predictor, episodes.select(np.array([True, False])),
                                    "estimate")  # fmt: skip
-    from masspush.real.finetune import segments_of
+    from masspush.real.classifier import segments_of
 
     parts, owner = segments_of(episodes, 2)
     assert len(parts) == 5 and parts.actions.shape[1] == 2
@@ -201,7 +201,7 @@ def test_finetune_and_classify_read_runs_as_recorded(tmp_path, capsys):
 def test_runs_read_one_by_one_are_classified_by_their_summed_log_probabilities(tmp_path):
     import torch
 
-    from masspush.real.finetune import MassClassifier
+    from masspush.real.classifier import MassClassifier
 
     predictor, runs = segmented_recording(tmp_path / "runs.jsonl")
     episodes = read_recording(tmp_path / "runs.jsonl").to_episodes()
@@ -230,7 +230,7 @@ def test_reading_runs_one_by_one_keeps_what_averaging_loses(monkeypatch):
     """Two classes whose episodes have the same mean: one's runs land at +1 or -1, half of
     each, the other's near 0. Averaged the classes overlap; read run by run they do not.
     An episode's runs are never split between training and test."""
-    import masspush.real.finetune as finetune
+    import masspush.real.classifier as finetune
 
     rng = np.random.default_rng(0)
     episodes, runs = 40, 8
@@ -265,7 +265,7 @@ def test_reading_runs_one_by_one_keeps_what_averaging_loses(monkeypatch):
 def test_the_classifier_trains_on_one_thread_and_gives_the_rest_back():
     import torch
 
-    from masspush.real.finetune import one_thread
+    from masspush.real.classifier import one_thread
 
     before = torch.get_num_threads()
     with one_thread():
@@ -275,7 +275,7 @@ def test_the_classifier_trains_on_one_thread_and_gives_the_rest_back():
 
 def test_the_start_pose_control_sees_the_start_pose_alone():
     from masspush.data.rollout import Episodes
-    from masspush.real.finetune import start_pose_features
+    from masspush.real.classifier import start_pose_features
 
     obs = np.zeros((2, 3, 4), np.float32)
     obs[:, 0] = [[0.1, 0.2, 0.0, 0.3], [0.0, -0.1, np.pi / 2, -0.2]]

@@ -6,8 +6,8 @@ import pytest
 import torch
 
 from masspush.data.recording import read_recording
-from masspush.real.finetune import PAPER_CLASSES, ClassifierConfig
-from masspush.real.sim2real import (
+from masspush.real.classifier import PAPER_CLASSES, ClassifierConfig
+from masspush.real.transfer import (
     CLASS_SEEDS,
     RUN_SEEDS,
     Sim2RealConfig,
@@ -156,8 +156,8 @@ def test_the_target_worlds_differences_can_be_scaled(run, tmp_path):
     assert not np.array_equal(scaled.episodes[0]["observations"], full.episodes[0]["observations"])
     # A world given outright is what the robot runs in.
     from masspush.models import model_and_policy
-    from masspush.real.sim2real import record_classes
     from masspush.real.target_world import scaled_world
+    from masspush.real.transfer import record_classes
 
     predictor, _, policy = model_and_policy("tp+", CONFIG.setting)
     given, _, _ = record_classes(CONFIG, predictor, policy, "given", progress=False,
@@ -288,7 +288,7 @@ class _LosingRobot:
 def test_failed_episodes_are_counted_never_replaced(monkeypatch):
     import masspush.real.backends as backends
     from masspush.models import model_and_policy
-    from masspush.real.sim2real import record_classes
+    from masspush.real.transfer import record_classes
 
     monkeypatch.setattr(backends, "SimRobot", _LosingRobot)
     config = Sim2RealConfig(setting="2link-1-10", world="training", episodes_per_class=6)
@@ -311,7 +311,7 @@ def test_the_lab_s_placement_puts_every_chain_where_it_says():
     from dataclasses import asdict
 
     from masspush.models import model_and_policy
-    from masspush.real.sim2real import record_classes
+    from masspush.real.transfer import record_classes
 
     predictor, _, policy = model_and_policy("rp", "2link-1-10")
     starts = {}
@@ -338,7 +338,7 @@ def test_the_lab_s_heading_lays_every_chain_the_way_it_says():
     from dataclasses import asdict
 
     from masspush.models import model_and_policy
-    from masspush.real.sim2real import HAND_YAW_SCATTER, record_classes
+    from masspush.real.transfer import HAND_YAW_SCATTER, record_classes
     from masspush.sim.chain import wrap_angle
 
     predictor, _, policy = model_and_policy("rp", "real-ur10")
@@ -395,7 +395,7 @@ def test_the_pushes_read_as_commanded_rescore_the_same_recordings(run, tmp_path)
 @pytest.mark.slow
 def test_the_classes_recorded_on_a_pool_are_the_classes_recorded_here(serial_pool):
     from masspush.models import model_and_policy
-    from masspush.real.sim2real import record_classes
+    from masspush.real.transfer import record_classes
 
     predictor, _, policy = model_and_policy("tp+", "2link-1-10")
     here = record_classes(CONFIG, predictor, policy, "t", progress=False)
@@ -429,7 +429,7 @@ def test_each_class_s_robot_pushes_that_class_s_chains_in_the_world_asked():
 def test_runs_with_other_seeds_never_share_a_chain():
     # Seed S + 1's chains were once seed S's shifted by one: a calibration run and its
     # "held-out" test runs then pushed the same chains.
-    from masspush.real.sim2real import class_episodes
+    from masspush.real.transfer import class_episodes
     from masspush.settings import get_setting
 
     setting = get_setting("2link-1-10")
@@ -445,7 +445,7 @@ def test_class_episodes_start_the_chains_of_a_run_in_its_order_and_close_each_ro
     monkeypatch,
 ):
     from masspush.real.backends import SimRobot
-    from masspush.real.sim2real import class_episodes, episode_id
+    from masspush.real.transfer import class_episodes, episode_id
     from masspush.settings import get_setting
 
     closed = []
@@ -468,7 +468,7 @@ def test_the_particle_filter_is_an_arm_scored_on_the_estimates_it_recorded(densi
     from dataclasses import replace
 
     from masspush.learn.push_density import load_push_density
-    from masspush.real.classify import TuneDensityJob, tune
+    from masspush.real.classifier_jobs import TuneDensityJob, tune
     from masspush.real.density_tuning import CalibrationWarning, TuneConfig
 
     config = replace(CONFIG, world="training", segments=2, density=str(density_file),
@@ -552,7 +552,7 @@ def test_the_particle_filter_is_an_arm_scored_on_the_estimates_it_recorded(densi
 def test_a_filter_arm_that_checks_reach_asks_before_every_push(monkeypatch, tmp_path):
     from dataclasses import replace
 
-    from masspush.sim.reach_check import ReachCheck
+    from masspush.sim.arm_reach import ReachCheck
 
     asked, threads = [], []
     check = ReachCheck.__call__
