@@ -12,6 +12,9 @@ import importlib
 import importlib.abc
 import importlib.util
 import sys
+import types
+from collections.abc import Sequence
+from importlib.machinery import ModuleSpec
 
 OLD_PATHS: dict[str, str] = {
     "actions": "masspush.sim.actions",
@@ -52,17 +55,22 @@ class _AliasLoader(importlib.abc.Loader):
     def __init__(self, target: str):
         self.target = target
 
-    def create_module(self, spec):
+    def create_module(self, spec: ModuleSpec) -> types.ModuleType:
         return importlib.import_module(self.target)
 
-    def exec_module(self, module) -> None:
+    def exec_module(self, module: types.ModuleType) -> None:
         pass
 
 
 class OldPathFinder(importlib.abc.MetaPathFinder):
     """Finds `masspush.<old name>` as the module it became."""
 
-    def find_spec(self, fullname, path=None, target=None):
+    def find_spec(
+        self,
+        fullname: str,
+        path: Sequence[str] | None = None,
+        target: types.ModuleType | None = None,
+    ) -> ModuleSpec | None:
         prefix, _, name = fullname.partition(".")
         if prefix != "masspush" or name not in OLD_PATHS:
             return None

@@ -214,7 +214,9 @@ def evaluate(
     )
 
 
-def per_episode_record(index, estimates, truths) -> dict[str, list]:
+def per_episode_record(
+    index: np.ndarray, estimates: np.ndarray, truths: np.ndarray
+) -> dict[str, list]:
     """Scored episodes (their index in the evaluation stream), final estimates and truths,
     as JSON lists."""
     return {

@@ -56,7 +56,7 @@ def paired_rows(a: dict, b: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     if not common:
         raise ValueError("the two records share no episode")
 
-    def rows(record, key):
+    def rows(record: dict, key: str) -> np.ndarray:
         where = {i: k for k, i in enumerate(record["index"])}
         return np.array([record[key][where[i]] for i in common], dtype=float)
 

@@ -69,7 +69,7 @@ class ArmScene:
         self.ready = self.push(self.sim.config(), READY_ACTION, chain.masses, chain.friction)[2]
 
     def push(
-        self, start: np.ndarray, action: np.ndarray, masses, friction: float
+        self, start: np.ndarray, action: np.ndarray, masses: np.ndarray, friction: float
     ) -> tuple[np.ndarray, str | None, np.ndarray]:
         """The rest configuration after pushing a chain of these masses and table friction
         from `start` with `action`, the failure (None, or one of simulate.FAILURES), and the

@@ -28,6 +28,7 @@ from masspush.evaluate import EstimatorRun
 from masspush.metrics import percentage_error
 from masspush.settings import Setting
 from masspush.sim.pushers import reach_governor
+from masspush.sim.workspace import ReachGovernor
 
 BAYES_MODELS = {"bayes": True, "bayes-random": False}
 """Model names `masspush evaluate` accepts for the filter: with information-seeking pushes,
@@ -35,8 +36,8 @@ or with the paper's random pushes."""
 
 
 def run_bayes_episode(
-    env, filt: ParticleFilter, policy: InfoSeekingPolicy | None, seed: int, pushes: int,
-    governor=None,
+    env: ChainEnv, filt: ParticleFilter, policy: InfoSeekingPolicy | None, seed: int,
+    pushes: int, governor: ReachGovernor | None = None,
 ) -> dict:  # fmt: skip
     """One episode of a ChainEnv estimated by the filter; pushes chosen by `policy` (None:
     uniform random), a stationary robot's through its speed `governor` as it makes them

@@ -44,7 +44,7 @@ from __future__ import annotations
 import warnings
 from dataclasses import asdict, dataclass, replace
 from statistics import NormalDist
-from typing import Any, NamedTuple, Protocol
+from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
 
 import numpy as np
 
@@ -53,6 +53,10 @@ from masspush.config import EnvConfig
 from masspush.sim.batch import ChainBatch
 from masspush.sim.chain import ChainParams, wrap_angle
 from masspush.sim.pushers import IDEAL_PUSHER, pusher_kind
+from masspush.sim.workspace import ReachGovernor
+
+if TYPE_CHECKING:
+    from masspush.settings import Setting
 
 FILTER_REVISION = 2
 """Raised when the filter's algorithm changes in a way its configuration does not show, so
@@ -66,11 +70,20 @@ class PushLikelihood(Protocol):
     link lengths, the log-density of observed rest poses after `action` from `start`, and
     draws of them."""
 
-    def log_prob(self, start, action, observed, masses, friction, lengths) -> np.ndarray: ...
+    def log_prob(
+        self, start: np.ndarray, action: np.ndarray, observed: np.ndarray, masses: np.ndarray,
+        friction: np.ndarray, lengths: np.ndarray,
+    ) -> np.ndarray: ...  # fmt: skip
 
-    def cross_log_prob(self, start, action, observed, masses, friction, lengths) -> np.ndarray: ...
+    def cross_log_prob(
+        self, start: np.ndarray, action: np.ndarray, observed: np.ndarray, masses: np.ndarray,
+        friction: np.ndarray, lengths: np.ndarray,
+    ) -> np.ndarray: ...  # fmt: skip
 
-    def sample(self, start, action, masses, friction, lengths, rng) -> np.ndarray: ...
+    def sample(
+        self, start: np.ndarray, action: np.ndarray, masses: np.ndarray, friction: np.ndarray,
+        lengths: np.ndarray, rng: np.random.Generator,
+    ) -> np.ndarray: ...  # fmt: skip
 
     def digest(self) -> str: ...
 
@@ -416,7 +429,7 @@ class ParticleFilter:
                             np.asarray(observed, float), sigma, power))  # fmt: skip
         return self._weigh(log_lik)
 
-    def replay(self, observations: np.ndarray, actions) -> Posterior | None:
+    def replay(self, observations: np.ndarray, actions: np.ndarray) -> Posterior | None:
         """`update` with each push of a recorded episode in turn: `observations` its rest
         poses (the first before any push), `actions` its pushes (those without an observed
         outcome are left out). Observations no particle explains are tempered quietly
@@ -631,7 +644,9 @@ class InfoSeekingPolicy:
     """Chooses each push to shrink the posterior of the mass distribution the most (with
     `BayesConfig.reach_weight`, from push `reach_from` on, and where the chain lands)."""
 
-    def __init__(self, filt: ParticleFilter, seed: int = 0, governor=None):
+    def __init__(
+        self, filt: ParticleFilter, seed: int = 0, governor: ReachGovernor | None = None
+    ) -> None:
         self.filter, self.seed = filt, seed
         self.governor = governor
         """A stationary robot's speed governor (`masspush.sim.reach_governor`): each
@@ -846,7 +861,7 @@ p = 0.79) (docs/notebook/2026-12-06-late-reach-weight.md) [ours]."""
 
 
 def default_config(
-    setting, pusher: str | None = None, likelihood: str = "simulator"
+    setting: Setting, pusher: str | None = None, likelihood: str = "simulator"
 ) -> BayesConfig:
     """The filter's configuration for chains of `setting` pushed by `pusher` (the
     setting's by default): with the learned likelihood `LEARNED_CONFIG` at
@@ -870,7 +885,7 @@ def default_config(
 
 
 def filter_for(
-    setting,
+    setting: Setting,
     pusher: str | None = None,
     config: BayesConfig | None = None,
     seed: int = 0,

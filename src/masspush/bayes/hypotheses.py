@@ -10,13 +10,17 @@ hypotheses apart (`experiments/sim2real/class_seeking.py`).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from masspush.bayes.filter import ParticleFilter, PushLikelihood, default_config, filter_for
 
+if TYPE_CHECKING:
+    from masspush.settings import Setting
 
-def friction_grid(setting, count: int) -> np.ndarray:
+
+def friction_grid(setting: Setting, count: int) -> np.ndarray:
     """`count` table frictions evenly inside the setting's range (`grid_inside`)."""
     return grid_inside(*setting.physics().friction_range, count)
 
@@ -62,7 +66,7 @@ class HypothesisFilter:
 
 
 def hypothesis_filter(
-    setting,
+    setting: Setting,
     hypotheses: list[np.ndarray] | np.ndarray,
     frictions: np.ndarray,
     pusher: str | None = None,

@@ -11,7 +11,8 @@ import argparse
 import os
 import sys
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from typing import NoReturn, TextIO
 
 from masspush.cli import data, estimate, real, reports, train
 from masspush.cli.command import Command
@@ -24,7 +25,7 @@ COMMANDS: list[Command] = [
 class _Parser(argparse.ArgumentParser):
     """argparse with a one-line usage error: `masspush COMMAND: error: ...`, exit 2."""
 
-    def error(self, message: str):
+    def error(self, message: str) -> NoReturn:
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
@@ -96,8 +97,11 @@ def _one_line(err: BaseException) -> str:
     return " ".join(str(err).split()) or type(err).__name__
 
 
-def _one_line_warning(chosen: str | None):
-    def show(message, category, filename, lineno, file=None, line=None) -> None:
+def _one_line_warning(chosen: str | None) -> Callable[..., None]:
+    def show(
+        message: Warning | str, category: type[Warning], filename: str, lineno: int,
+        file: TextIO | None = None, line: str | None = None,
+    ) -> None:  # fmt: skip
         print(f"masspush {chosen}: warning: {_one_line(message)}", file=file or sys.stderr)
 
     return show

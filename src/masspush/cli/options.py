@@ -19,7 +19,7 @@ import inspect
 import textwrap
 import types
 import typing
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
 MISSING = dataclasses.MISSING
@@ -63,7 +63,7 @@ def _default(f: dataclasses.Field) -> Any:
     return MISSING
 
 
-def _comma_tuple(kind: type):
+def _comma_tuple(kind: type) -> Callable[[str], tuple]:
     def parse(text: str) -> tuple:
         try:
             return tuple(kind(part) for part in text.split(",") if part.strip())
@@ -147,7 +147,9 @@ def given(args: argparse.Namespace, cls: type, prefix: str = "") -> dict[str, An
     return out
 
 
-def build(cls: type, args: argparse.Namespace, base: Any = None, prefix: str = "", **extra: Any):
+def build(
+    cls: type, args: argparse.Namespace, base: Any = None, prefix: str = "", **extra: Any
+) -> Any:
     """A `cls` from the command line: `base` (or `cls`'s defaults) with the given fields
     and `extra` replaced; the dataclass validates."""
     values = {**given(args, cls, prefix), **extra}

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from collections.abc import Callable
 from dataclasses import asdict
 
 from masspush.cli.command import Command
@@ -48,7 +49,9 @@ def _json_flag(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
 
 
-def _bench(config_name: str, json_flag: bool = False, pairs: tuple[str, ...] = ()):
+def _bench(
+    config_name: str, json_flag: bool = False, pairs: tuple[str, ...] = ()
+) -> Callable[[argparse.ArgumentParser], None]:
     def options(p: argparse.ArgumentParser) -> None:
         from masspush.reports import bench
 

@@ -4,9 +4,13 @@ filter's learned likelihood."""
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
 
 from masspush.cli.command import Command
 from masspush.cli.options import add_fields, build
+
+if TYPE_CHECKING:
+    from masspush.learn.recipe import RecipeConfig
 
 GROUP = "train"
 
@@ -89,7 +93,7 @@ def _recipe_options(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _recipe(args: argparse.Namespace):
+def _recipe(args: argparse.Namespace) -> RecipeConfig:
     from dataclasses import replace
 
     from masspush.learn.policy import PolicyConfig

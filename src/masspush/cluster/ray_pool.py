@@ -24,11 +24,14 @@ import socket
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from tqdm import tqdm
 
 from masspush.cluster.errors import RAY_EXTRA, ClusterError
+
+if TYPE_CHECKING:
+    from masspush.cluster.ray_vec_env import RayVecEnv
 
 TASK_CPUS = 1
 """CPUs each task asks for (its work runs on one thread)."""
@@ -111,7 +114,7 @@ class RayPool:
             for ref in pending:
                 ray.cancel(ref)
 
-    def vec_env(self, env_fns: list[Callable[[], Any]]):
+    def vec_env(self, env_fns: list[Callable[[], Any]]) -> RayVecEnv:
         """A stable-baselines3 VecEnv of `env_fns` as Ray actors (`ray_vec_env`)."""
         from masspush.cluster.ray_vec_env import RayVecEnv
 

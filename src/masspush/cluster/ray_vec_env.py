@@ -20,7 +20,12 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
+from stable_baselines3.common.vec_env.base_vec_env import (
+    VecEnv,
+    VecEnvIndices,
+    VecEnvObs,
+    VecEnvStepReturn,
+)
 
 
 class _EnvGroup:
@@ -97,7 +102,7 @@ class RayVecEnv(VecEnv):
         self._pending: list[Any] | None = None
 
     @staticmethod
-    def _get(refs):
+    def _get(refs: Any) -> Any:
         import ray
         from ray.exceptions import RayActorError, RayTaskError
 
@@ -119,14 +124,14 @@ class RayVecEnv(VecEnv):
             for a, s in zip(self._actors, self._slices, strict=True)
         ]
 
-    def step_wait(self):
+    def step_wait(self) -> VecEnvStepReturn:
         assert self._pending is not None, "step_async first"
         results = [r for part in self._get(self._pending) for r in part]
         self._pending = None
         obs, rewards, dones, infos, self.reset_infos = zip(*results, strict=True)
         return np.stack(obs), np.stack(rewards), np.stack(dones), infos
 
-    def reset(self):
+    def reset(self) -> VecEnvObs:
         refs = [
             a.reset.remote([self._seeds[i] for i in s], [self._options[i] for i in s])
             for a, s in zip(self._actors, self._slices, strict=True)
@@ -170,7 +175,9 @@ class RayVecEnv(VecEnv):
     ) -> list[Any]:
         return self._call(indices, "env_method", method_name, method_args, method_kwargs)
 
-    def env_is_wrapped(self, wrapper_class, indices: VecEnvIndices = None) -> list[bool]:
+    def env_is_wrapped(
+        self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None
+    ) -> list[bool]:
         return self._call(indices, "is_wrapped", wrapper_class)
 
     def get_images(self) -> Sequence[np.ndarray | None]:

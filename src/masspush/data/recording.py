@@ -463,7 +463,9 @@ def _check_episode(line: int, e: dict, n_links: int | None, problems: list[Probl
                 "that add up to 1")  # fmt: skip
 
 
-def _numbers(value, name, line, problems, shape) -> np.ndarray | None:
+def _numbers(
+    value: Any, name: str, line: int, problems: list[Problem], shape: tuple[int | None, ...]
+) -> np.ndarray | None:
     """`value` as a float array of `shape` (None: any length), or None with a problem."""
     if value is None:
         return None

@@ -278,7 +278,7 @@ def _enter_worker(policy: Policy) -> None:
         in_worker()
 
 
-def _run_env_job(args) -> Episodes:
+def _run_env_job(args: tuple) -> Episodes:
     _enter_worker(args[1])
     return run_env(*args)
 

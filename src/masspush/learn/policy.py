@@ -22,7 +22,7 @@ import os
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 import numpy as np
@@ -39,6 +39,11 @@ from masspush.learn.features import (
 )
 from masspush.learn.vec_env import BatchPushVecEnv
 from masspush.sim.pushers import on_batch_path, pusher_kind, reach_governor
+
+if TYPE_CHECKING:
+    from stable_baselines3.common.base_class import BaseAlgorithm
+    from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.vec_env import VecEnv
 
 ChainEnvFactory = Callable[[], gym.Env]
 """Makes the environment whose chains the policy pushes, inside each worker: one that speaks
@@ -253,7 +258,7 @@ def make_vec_env(
     env_config: EnvConfig, predictor_path: str | os.PathLike, n_envs: int, seed: int,
     chain_env: ChainEnvFactory | None = None, workers: Workers = None, runs: int = 1,
     reward: str = "paper", loss_reward: float = LOSS_REWARD, lockstep_arms: bool = True,
-):  # fmt: skip
+) -> VecEnv:  # fmt: skip
     """`n_envs` pushing episodes: for a pusher with a batch path in lockstep on the
     multi-threaded batch path (`masspush.learn.vec_env`), for an arm, in another world
     (`chain_env`), with several runs per episode (`runs`) or other rewards as
@@ -300,7 +305,7 @@ def make_vec_env(
     )
 
 
-def new_model(config: PolicyConfig, vec_env, tensorboard_log: str | None):
+def new_model(config: PolicyConfig, vec_env: VecEnv, tensorboard_log: str | None) -> BaseAlgorithm:
     from torch import nn
 
     kwargs = dict(PAPER_PPO, verbose=0, seed=config.seed, tensorboard_log=tensorboard_log)
@@ -329,7 +334,7 @@ def new_model(config: PolicyConfig, vec_env, tensorboard_log: str | None):
     return _start_at(model, config.initial_action)
 
 
-def _start_at(model, action: tuple[float, float]):
+def _start_at(model: BaseAlgorithm, action: tuple[float, float]) -> BaseAlgorithm:
     import torch
 
     with torch.no_grad():
@@ -357,7 +362,7 @@ def strip_policy(source: str | os.PathLike, target: str | os.PathLike) -> Path:
     return Path(target)
 
 
-def load_sb3(path: str | os.PathLike, algo: str, env=None):
+def load_sb3(path: str | os.PathLike, algo: str, env: VecEnv | None = None) -> BaseAlgorithm:
     if algo == "recurrent":
         from sb3_contrib import RecurrentPPO
 
@@ -444,7 +449,7 @@ def train_policy(
     return final
 
 
-def _prediction_error_log(path: Path):
+def _prediction_error_log(path: Path) -> BaseCallback:
     """A callback: after each PPO rollout, the frozen predictor's error (the paper's metric)
     on the episodes that ended in it, to TensorBoard and to `path` (CSV, appended)."""
     from stable_baselines3.common.callbacks import BaseCallback

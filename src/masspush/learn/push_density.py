@@ -242,7 +242,10 @@ class PushDensity(nn.Module):
     def _x(self, inputs: np.ndarray) -> torch.Tensor:
         return (torch.as_tensor(inputs, dtype=torch.float32) - self.x_mean) / self.x_std
 
-    def _inputs(self, start, action, masses, friction, lengths) -> torch.Tensor:
+    def _inputs(
+        self, start: np.ndarray, action: np.ndarray, masses: np.ndarray, friction: np.ndarray,
+        lengths: np.ndarray,
+    ) -> torch.Tensor:  # fmt: skip
         return self._x(push_inputs(start, action, masses, friction, lengths, self.placed))
 
     def _y(self, outputs: np.ndarray) -> torch.Tensor:

@@ -37,6 +37,7 @@ from typing import Any
 
 from masspush.cluster.pool import Workers
 from masspush.data.dataset import code_version, collect, load_dataset
+from masspush.data.rollout import Policy
 from masspush.evaluate import evaluate
 from masspush.learn.estimator import PredictorEstimator
 from masspush.learn.features import LOSS_REWARD
@@ -346,7 +347,9 @@ class Recipe:
         policy = self.config.policy
         return LearnedPolicy(self.policy(i), policy.algo, deterministic, self.pusher, policy.runs)
 
-    def _collect(self, name: str, episodes: int, policy, stream: int, resize: bool = False) -> None:
+    def _collect(
+        self, name: str, episodes: int, policy: str | Policy, stream: int, resize: bool = False
+    ) -> None:
         collect(
             self.setting,
             self.dir / name,

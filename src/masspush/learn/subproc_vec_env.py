@@ -10,10 +10,12 @@ resumed from its last checkpoint.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from multiprocessing.connection import Connection
 from multiprocessing.process import BaseProcess
 from typing import Any
 
+import gymnasium as gym
 from stable_baselines3.common.vec_env import SubprocVecEnv
 
 POLL_SECONDS = 1.0
@@ -57,7 +59,9 @@ class _WatchedPipe:
 class WatchedSubprocVecEnv(SubprocVecEnv):
     """`SubprocVecEnv` whose waits end in `WorkerDiedError` when a worker has died."""
 
-    def __init__(self, env_fns, start_method: str | None = None):
+    def __init__(
+        self, env_fns: list[Callable[[], gym.Env]], start_method: str | None = None
+    ) -> None:
         super().__init__(env_fns, start_method)
         self.remotes = [  # type: ignore[assignment]
             _WatchedPipe(pipe, process, i)

@@ -16,7 +16,7 @@ from __future__ import annotations
 import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import torch
@@ -30,6 +30,9 @@ from masspush.learn.predictor import (
     step_inputs,
 )
 from masspush.sim.pushers import IDEAL_PUSHER
+
+if TYPE_CHECKING:
+    from masspush.settings import Setting
 
 FORMAT, VERSION = "masspush-dirichlet-head", 1
 
@@ -225,7 +228,7 @@ def load_head(
 
 
 def calibrate(
-    setting,
+    setting: Setting,
     path: str | os.PathLike,
     config: HeadConfig = HeadConfig(),
     out: str | os.PathLike | None = None,

@@ -14,7 +14,7 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from stable_baselines3.common.vec_env.base_vec_env import VecEnv
+from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvStepReturn
 
 from masspush.config import EnvConfig
 from masspush.data.rollout import Episodes
@@ -79,7 +79,7 @@ class BatchPushVecEnv(VecEnv):
     def step_async(self, actions: np.ndarray) -> None:
         self._actions = np.clip(np.asarray(actions, np.float32), -1.0, 1.0)
 
-    def step_wait(self):
+    def step_wait(self) -> VecEnvStepReturn:
         from masspush.env import executed_action, noisy_observation
 
         assert self._actions is not None, "step_async first"
@@ -119,16 +119,20 @@ class BatchPushVecEnv(VecEnv):
     def close(self) -> None:
         pass
 
-    def get_attr(self, attr_name: str, indices=None) -> list[Any]:
+    def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
         return [getattr(self, attr_name)] * len(self._get_indices(indices))
 
-    def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
+    def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
         setattr(self, attr_name, value)
 
-    def env_method(self, method_name: str, *args, indices=None, **kwargs) -> list[Any]:
+    def env_method(
+        self, method_name: str, *args: Any, indices: VecEnvIndices = None, **kwargs: Any
+    ) -> list[Any]:
         raise NotImplementedError("BatchPushVecEnv has no per-environment methods")
 
-    def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
+    def env_is_wrapped(
+        self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None
+    ) -> list[bool]:
         return [False] * len(self._get_indices(indices))
 
     # --- helpers ----------------------------------------------------------------------

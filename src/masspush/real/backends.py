@@ -4,7 +4,7 @@ behind the `masspush.real.robot.Robot` interface, and `make_robot` to pick one b
 from __future__ import annotations
 
 import os
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -12,13 +12,16 @@ from masspush.real.robot import PushReport, RestPose, Robot
 from masspush.real.target_world import TargetWorldRobot
 from masspush.sim.pushers import PUSHERS, reach_governor
 
+if TYPE_CHECKING:
+    from masspush.settings import Setting
+
 
 class SimRobot:
     """The simulation as a robot: each `start` places a new random chain of the setting."""
 
     def __init__(
         self,
-        setting,
+        setting: str | Setting,
         pusher: str | None = None,
         seed: int = 0,
         masses: tuple[float, ...] | None = None,
@@ -137,7 +140,9 @@ class RecordedPolicy:
     def reset(self, seeds: np.ndarray) -> None:
         pass
 
-    def act(self, observations, actions, step, lengths) -> np.ndarray:
+    def act(
+        self, observations: np.ndarray, actions: np.ndarray, step: int, lengths: np.ndarray
+    ) -> np.ndarray:
         return self.robot.recorded_actions[step][None]
 
 
@@ -147,7 +152,7 @@ BACKENDS = ("target", "replay")
 
 def make_robot(
     backend: str,
-    setting,
+    setting: str | Setting,
     recording: str | None = None,
     seed: int = 0,
     masses: tuple[float, ...] | None = None,

@@ -21,7 +21,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import torch
@@ -29,6 +29,9 @@ from torch import nn
 
 from masspush.data.rollout import Episodes, empty_episodes
 from masspush.learn.predictor import Predictor, read_torch_file, step_inputs
+
+if TYPE_CHECKING:
+    from masspush.data.recording import Recording
 
 PAPER_CLASSES: dict[str, tuple[float, float]] = {
     "0.160-0.160": (0.16, 0.16),
@@ -379,7 +382,7 @@ def load_classifier(
     return model, list(payload["classes"]), meta
 
 
-def labelled(recording) -> tuple[np.ndarray, list[str]]:
+def labelled(recording: Recording) -> tuple[np.ndarray, list[str]]:
     """Integer labels of a recording's episodes and the sorted class names."""
     labels = recording.labels
     missing = [

@@ -13,6 +13,8 @@ was trained on runs of the setting's length; the filter's posterior after 16 pus
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -25,6 +27,14 @@ from masspush.bayes.filter import (
 )
 from masspush.config import MAX_PUSHES
 from masspush.data.rollout import Episodes, RandomPolicy
+from masspush.sim.workspace import ReachGovernor
+
+if TYPE_CHECKING:
+    from masspush.settings import Setting
+
+Reachable = Callable[[np.ndarray, np.ndarray, Sequence[float]], bool]
+"""`reachable(action, config, lengths)`: whether the robot can make a push
+(`masspush.sim.arm_reach.ReachCheck`)."""
 
 
 def check_bayes_options(bayes: dict | None, filtered: bool) -> None:
@@ -52,7 +62,7 @@ class FilterArm:
 
     @classmethod
     def load(
-        cls, model: str, setting, seed: int = 0, density: str | None = None,
+        cls, model: str, setting: Setting, seed: int = 0, density: str | None = None,
         overrides: dict | None = None,
     ) -> FilterArm:  # fmt: skip
         """The filter `model` (bayes, bayes-random) for chains of `setting` (a `Setting`),
@@ -65,7 +75,9 @@ class FilterArm:
         bayes |= overrides or {}
         return cls(load_estimator(model, setting, bayes=bayes or None, progress=False), seed)
 
-    def __init__(self, estimator: BayesEstimator, seed: int = 0, governor=None):
+    def __init__(
+        self, estimator: BayesEstimator, seed: int = 0, governor: ReachGovernor | None = None
+    ) -> None:
         self.name = estimator.name
         self.filter = filter_for(
             estimator.setting, estimator.pusher, estimator.config, seed, estimator.density
@@ -75,24 +87,24 @@ class FilterArm:
         self._episode: int | None = None
 
     @property
-    def governor(self):
+    def governor(self) -> ReachGovernor | None:
         """The stationary robot's speed governor the candidates are compared through (the
         robot's own, which may be fitted to its lab: `masspush.real.governor`)."""
         return None if self.seeking is None else self.seeking.governor
 
     @governor.setter
-    def governor(self, governor) -> None:
+    def governor(self, governor: ReachGovernor | None) -> None:
         if self.seeking is not None:
             self.seeking.governor = governor
 
     @property
-    def reach_check(self):
+    def reach_check(self) -> Reachable | None:
         """Whether the robot can make a push (`masspush.sim.arm_reach.ReachCheck`), asked
         of the candidates best first; None: the best is pushed unasked."""
         return None if self.seeking is None else self.seeking.reachable
 
     @reach_check.setter
-    def reach_check(self, check) -> None:
+    def reach_check(self, check: Reachable | None) -> None:
         if self.seeking is not None:
             self.seeking.reachable = check
 

@@ -36,7 +36,8 @@ from tqdm import tqdm
 from masspush.cluster.pool import local_processes
 from masspush.config import check_int
 from masspush.data.dataset import MANIFEST, Manifest, new_manifest, write_manifest
-from masspush.data.rollout import Episodes, empty_episodes, failure_code
+from masspush.data.rollout import Episodes, Policy, empty_episodes, failure_code
+from masspush.real.robot import EstimationEpisode
 from masspush.real.robot_env import RobotEnv
 from masspush.real.target_world import TargetWorld, TargetWorldRobot, WorldRanges
 
@@ -132,7 +133,7 @@ class RandomiseConfig:
 
 def run_randomised(
     setting: str, model_file: str | os.PathLike, world: WorldRanges | TargetWorld,
-    indices: np.ndarray, base_seed: int, policy=None, lab: int | None = None,
+    indices: np.ndarray, base_seed: int, policy: Policy | None = None, lab: int | None = None,
 ) -> Episodes:  # fmt: skip
     """Episodes `indices` of the model's policy (or of `policy`, a `masspush.data.rollout.Policy`)
     in worlds drawn from `world` (or in that one `TargetWorld`, in its lab `lab` if given), as
@@ -159,7 +160,9 @@ def run_randomised(
     return Episodes.concatenate(rows)
 
 
-def _episode_arrays(index: int, seed: int, episode, truth: dict, pushes: int) -> Episodes:
+def _episode_arrays(
+    index: int, seed: int, episode: EstimationEpisode, truth: dict, pushes: int
+) -> Episodes:
     out = empty_episodes(1, pushes, len(truth["masses"]))
     out.index[0], out.seed[0] = index, seed
     out.observations[0, 0], out.configs[0, 0] = episode.start.config, truth["config"]
@@ -175,7 +178,7 @@ def _episode_arrays(index: int, seed: int, episode, truth: dict, pushes: int) ->
     return out
 
 
-def _shard_job(args) -> tuple[int, int]:
+def _shard_job(args: tuple) -> tuple[int, int]:
     import torch
 
     from masspush.data.dataset import shard_path, write_shard

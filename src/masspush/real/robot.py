@@ -14,7 +14,7 @@ backend is a class with the same three methods; docs/real-robot.md shows one.
 from __future__ import annotations
 
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -22,7 +22,7 @@ import numpy as np
 
 from masspush.config import ChainGeometry, PhysicsConfig
 from masspush.data.recording import SpeedReader
-from masspush.data.rollout import Episodes
+from masspush.data.rollout import Episodes, Policy
 
 
 class GeometryWarning(UserWarning):
@@ -185,10 +185,17 @@ class EstimationEpisode:
 PushCallback = Callable[[int, np.ndarray, PushReport, "np.ndarray | None"], None]
 
 
+class HistoryPredictor(Protocol):
+    """Estimates the mass distribution after each push of a history: a predictor
+    (`masspush.learn.predictor.Predictor`) or the particle filter's arm (`FilterArm`)."""
+
+    def predict(self, episodes: Episodes) -> np.ndarray: ...
+
+
 def run_estimation(
     robot: Robot,
-    predictor,
-    policy,
+    predictor: HistoryPredictor,
+    policy: Policy,
     pushes: int,
     on_push: PushCallback | None = None,
     start: RestPose | None = None,
@@ -234,8 +241,8 @@ def run_estimation(
 
 def run_segments(
     robot: Robot,
-    predictor,
-    policy,
+    predictor: HistoryPredictor,
+    policy: Policy,
     pushes: int,
     segments: int,
     on_push: PushCallback | None = None,
@@ -280,13 +287,13 @@ def run_segments(
 def _numbered_from(first: int, on_push: PushCallback) -> PushCallback:
     """`on_push` hearing a run's pushes numbered on from `first`."""
 
-    def told(k, action, report, estimate) -> None:
+    def told(k: int, action: np.ndarray, report: PushReport, estimate: np.ndarray | None) -> None:
         on_push(first + k, action, report, estimate)
 
     return told
 
 
-def print_push(k: int, action: np.ndarray, result: PushReport, estimate) -> None:
+def print_push(k: int, action: np.ndarray, result: PushReport, estimate: np.ndarray | None) -> None:
     """The plain report of a push, for `masspush run`."""
     if result.failure is not None:
         print(f"push {k + 1}: a={fmt(action, 2)} failed ({result.failure})")
@@ -295,6 +302,6 @@ def print_push(k: int, action: np.ndarray, result: PushReport, estimate) -> None
     print(f"  estimate {fmt(estimate)}")
 
 
-def fmt(values, digits: int = 3) -> str:
+def fmt(values: np.ndarray | Sequence[float], digits: int = 3) -> str:
     """Numbers as a short signed list, for reports."""
     return "[" + ", ".join(f"{v:+.{digits}f}" for v in np.asarray(values, dtype=float)) + "]"

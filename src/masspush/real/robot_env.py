@@ -14,6 +14,7 @@ from typing import Any, ClassVar
 import gymnasium as gym
 import numpy as np
 
+from masspush.real.robot import Robot
 from masspush.sim.actions import check_action
 
 
@@ -24,7 +25,7 @@ class RobotEnv(gym.Env):
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": []}
 
-    def __init__(self, robot, pushes: int):
+    def __init__(self, robot: Robot, pushes: int) -> None:
         if pushes < 1:
             raise ValueError(f"pushes must be >= 1, got {pushes}")
         self.robot, self.pushes = robot, pushes

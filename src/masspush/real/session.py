@@ -3,6 +3,7 @@ optionally written to a recording."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -121,7 +122,7 @@ class SessionConfig:
             check_output(self.record, "record")
 
 
-def run_session(config: SessionConfig, say=print) -> list[dict]:
+def run_session(config: SessionConfig, say: Callable[[str], object] = print) -> list[dict]:
     """Run the episodes, `say`ing each push and estimate; returns the episodes as a
     recording's (written to `config.record` where given)."""
     setting = get_setting(config.setting, config.settings_file)

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
@@ -43,6 +43,9 @@ from masspush.real.robot import PushReport, RestPose
 from masspush.sim.chain import sample_chain, wrap_angle
 from masspush.sim.pushers import make_pusher, reach_governor
 from masspush.sim.simulate import ChainSim
+
+if TYPE_CHECKING:
+    from masspush.settings import Setting
 
 SOLVERS = {"CG": mujoco.mjtSolver.mjSOL_CG, "Newton": mujoco.mjtSolver.mjSOL_NEWTON,
            "PGS": mujoco.mjtSolver.mjSOL_PGS}  # fmt: skip
@@ -317,7 +320,7 @@ class TargetWorldRobot:
 
     def __init__(
         self,
-        setting,
+        setting: str | Setting,
         world: TargetWorld | WorldRanges | None = None,
         pusher: str | None = None,
         seed: int = 0,

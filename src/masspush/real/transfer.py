@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
@@ -43,7 +43,13 @@ from masspush.real.filter_arm import FilterArm, check_bayes_options
 from masspush.sim.simulate import REACH_FAILURES
 
 if TYPE_CHECKING:
+    from masspush.data.recording import Recording, SpeedReader
+    from masspush.data.rollout import Policy
+    from masspush.learn.push_density import PushDensity
+    from masspush.real.robot import HistoryPredictor, Robot
     from masspush.real.target_world import TargetWorld
+    from masspush.settings import Setting
+    from masspush.sim.workspace import ReachGovernor
 
 HAND_YAW_SCATTER = 5.0
 """How far a chain laid by hand strays from the heading asked (`Sim2RealConfig.start_yaw`),
@@ -176,7 +182,7 @@ class Sim2RealConfig:
                 f"got {self.episodes_per_class}"
             )
 
-    def sorting_density(self):
+    def sorting_density(self) -> PushDensity | None:
         """The `tuned_density`, checked: of this setting, tuned for the protocol's classes."""
         from masspush.learn.push_density import density_for
         from masspush.settings import get_setting
@@ -232,9 +238,10 @@ def sim2real(job: Sim2RealJob, config: Sim2RealConfig) -> str:
 
 
 def record_classes(
-    config: Sim2RealConfig, predictor, policy, robot_name: str, desc: str = "",
-    progress: bool = True, target: TargetWorld | None = None, workers: Workers = None,
-):  # fmt: skip
+    config: Sim2RealConfig, predictor: HistoryPredictor, policy: Policy, robot_name: str,
+    desc: str = "", progress: bool = True, target: TargetWorld | None = None,
+    workers: Workers = None,
+) -> tuple[Recording, dict[str, int], dict[str, dict]]:  # fmt: skip
     """`config.episodes_per_class` episodes of each of the paper's classes, pushed by
     `policy` in `config.world`: the recording (labelled; every episode with at least one
     good push, classified from the pushes it has), the failed pushes by reason, and per
@@ -269,7 +276,7 @@ def record_classes(
     return recording, failures, classes
 
 
-def _fitted_governor(config: Sim2RealConfig, setting):
+def _fitted_governor(config: Sim2RealConfig, setting: Setting) -> ReachGovernor | None:
     """The speed governor fitted to `config.governor_fit` (once, before any episode), or None."""
     if config.governor_fit is None:
         return None
@@ -285,7 +292,7 @@ def _fitted_governor(config: Sim2RealConfig, setting):
     return fit_governor(governor, config.governor_fit)
 
 
-def _speed_reader(config: Sim2RealConfig):
+def _speed_reader(config: Sim2RealConfig) -> SpeedReader | None:
     """How the arms' models read a push's reported speed here, or None (`read_speeds`)."""
     from masspush.real.robot import speed_reader
     from masspush.settings import get_setting
@@ -306,8 +313,9 @@ run's chains began at `seed` itself, and seed S + 1's chains were seed S's shift
 
 
 def class_robot(
-    setting, c: int, seed: int = 0, world=None, lab: int | None = None, pushes: int | None = None
-):  # fmt: skip
+    setting: Setting, c: int, seed: int = 0, world: TargetWorld | None = None,
+    lab: int | None = None, pushes: int | None = None,
+) -> Robot:  # fmt: skip
     """The robot that pushes the chains of class `c` (of `PAPER_CLASSES`) in `masspush
     sim2real --seed SEED`: in the target world `world` (a `TargetWorld`; `lab` one lab of
     it), or with `world` None in the training world, there with room for `pushes` pushes.
@@ -343,7 +351,8 @@ def episode_id(c: int, i: int) -> str:
 
 
 def class_episodes(
-    setting, per_class: int, seed: int = 0, lab: int | None = None, pushes: int | None = None
+    setting: Setting, per_class: int, seed: int = 0, lab: int | None = None,
+    pushes: int | None = None,
 ) -> Iterator[ClassEpisode]:  # fmt: skip
     """The chains of `masspush sim2real --seed SEED [--lab LAB]`, class by class, each robot
     started on its next chain (whether or not the caller pushes it, so that a resumed run
@@ -383,7 +392,9 @@ def _placement(config: Sim2RealConfig) -> dict[str, Any]:
     return out
 
 
-def _record_class(shared: tuple, c: int, advance=None) -> tuple[list, dict, dict]:
+def _record_class(
+    shared: tuple, c: int, advance: Callable[[], object] | None = None
+) -> tuple[list, dict, dict]:
     """Class `c`'s episodes, one robot for them all (its randomness runs on from episode to
     episode): the recorded episodes, the failed pushes by reason, the tally."""
     from masspush.real.robot import run_segments

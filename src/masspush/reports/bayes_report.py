@@ -114,10 +114,10 @@ def filter_settings(setting: str) -> dict[str, Any]:
 
 
 def table_markdown(rows: list[dict[str, Any]]) -> str:
-    def num(value, fmt="{:.2f}"):
+    def num(value: float | None, fmt: str = "{:.2f}") -> str:
         return "not yet" if value is None else fmt.format(value)
 
-    def pct(value):
+    def pct(value: float | None) -> str:
         return "not yet" if value is None else f"{100 * value:.0f} %"
 
     lines = [

@@ -14,7 +14,7 @@ from tqdm import tqdm
 from masspush.config import MAX_LINKS, PhysicsConfig, check_int
 from masspush.env import ChainEnv
 from masspush.sim.batch import ChainBatch
-from masspush.sim.chain import sample_chain
+from masspush.sim.chain import ChainParams, sample_chain
 from masspush.sim.pushers import IDEAL_PUSHER, pusher_field, pusher_kind
 
 
@@ -360,7 +360,9 @@ def bench_sim(config: SimBench = SimBench(), progress: bool = True) -> SimBenchm
     )
 
 
-def _raw_step_rate(chains, physics: PhysicsConfig, threads: int, actions: np.ndarray) -> float:
+def _raw_step_rate(
+    chains: list[ChainParams], physics: PhysicsConfig, threads: int, actions: np.ndarray
+) -> float:
     """Raw mj_step throughput on all threads, on the states the batch run's pushes create.
 
     Each round, the same chains get the same pushes; right after contact every chain is

@@ -14,12 +14,15 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from masspush.config import check_int
 from masspush.data.dataset import collect
 from masspush.settings import get_setting
 from masspush.sim.pushers import pusher_field, pusher_kind
+
+if TYPE_CHECKING:
+    from masspush.cluster.pool import TaskPool
 
 
 @dataclass(frozen=True)
@@ -68,7 +71,7 @@ def bench_cluster(config: ClusterBench = ClusterBench(), progress: bool = False)
     spec = get_setting(config.setting)
     workers = max(config.cpus)
 
-    def run(out: Path, pool=None) -> float:
+    def run(out: Path, pool: TaskPool | None = None) -> float:
         t0 = time.perf_counter()
         collect(
             spec, out, episodes=config.episodes, pusher=config.pusher,

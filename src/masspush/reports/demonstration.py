@@ -9,6 +9,7 @@ video (MuJoCo's renderer) replays the same episode on request.
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -19,7 +20,7 @@ from masspush.learn.policy import model_policy
 from masspush.learn.predictor import load_model
 from masspush.models import resolve_model
 from masspush.real.backends import SimRobot
-from masspush.real.robot import fmt, run_estimation
+from masspush.real.robot import PushReport, fmt, run_estimation
 from masspush.settings import Setting, get_setting
 from masspush.sim.actions import PushSpec, push_geometry
 from masspush.sim.chain import link_poses
@@ -75,7 +76,7 @@ def run_demo(
     setting: str | Setting = DEMO_SETTING,
     model: str | os.PathLike = "tp+",
     seed: int = 0,
-    report=print,
+    report: Callable[[str], object] = print,
 ) -> DemoEpisode:
     """Run one episode with a trained (shipped) model and its policy; report as it goes."""
     spec = get_setting(setting) if isinstance(setting, str) else setting
@@ -108,7 +109,9 @@ def run_demo(
     report(f"  rest pose q0       {fmt(rest.config)}  (x, y, yaw, joint angles; noisy)")
     report(f"Model {model!r} ({path.name}), pushes chosen by the {policy.name} policy.")
 
-    def on_push(k: int, action: np.ndarray, result, estimate) -> None:
+    def on_push(
+        k: int, action: np.ndarray, result: PushReport, estimate: np.ndarray | None
+    ) -> None:
         push = result.details
         geometry = push_geometry(_spec(push), episode.configs[-1], rest.lengths, robot.env.physics)
         episode.pushes.append(
@@ -139,7 +142,7 @@ def run_demo(
     return episode
 
 
-def demo(config: DemoConfig, report=print) -> list[Path]:
+def demo(config: DemoConfig, report: Callable[[str], object] = print) -> list[Path]:
     """The demo: run the episode (reporting each push), draw it, and on request render it
     to a video. Returns the files written."""
     episode = run_demo(config.setting, config.model, config.seed, report)

@@ -16,10 +16,10 @@ from __future__ import annotations
 
 import csv
 import json
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from masspush.cluster.pool import check_address, open_pool
 from masspush.learn.predictor import FAST, load_model
@@ -34,6 +34,9 @@ from masspush.reports.baselines import (
 )
 from masspush.settings import get_setting
 from masspush.sim.pushers import pusher_field, pusher_kind
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
 COLUMNS = ("rp", "rp+", "tp", "tp+")
 
@@ -63,7 +66,9 @@ class TrainJob:
         check_address(self.ray)
 
 
-def train_setting(job: TrainJob, recipe: RecipeConfig, log=print) -> list[str]:
+def train_setting(
+    job: TrainJob, recipe: RecipeConfig, log: Callable[[str], object] = print
+) -> list[str]:
     """Run the recipe for one setting (and ship it); the report."""
     setting = get_setting(job.setting, job.settings_file)
     pusher = job.pusher or setting.pusher
@@ -172,7 +177,7 @@ def load_record(setting: str, pusher: str, root: str | Path = ".") -> dict[str, 
     return run_record(train_dir(setting, pusher, root)) or _load(record_path(setting, pusher, root))
 
 
-def _state(setting: str, pusher: str, root) -> dict[str, Any] | None:
+def _state(setting: str, pusher: str, root: str | Path) -> dict[str, Any] | None:
     """A setting's run state, as `load_record` finds it, without reading its PPO progress."""
     state = _load(train_dir(setting, pusher, root) / "state.json")
     if state is None:
@@ -184,7 +189,9 @@ def _load(path: Path) -> dict[str, Any] | None:
     return json.loads(path.read_text()) if path.exists() else None
 
 
-def collect_rows(settings: Sequence[str], pushers: dict[str, str], root=".") -> list[dict]:
+def collect_rows(
+    settings: Sequence[str], pushers: dict[str, str], root: str | Path = "."
+) -> list[dict]:
     """One row per setting: our four errors (None where not run yet) and the paper's. A
     setting with neither a run directory nor a record keeps its row of the last table
     written (results/table1.csv), marked as carried over."""
@@ -280,7 +287,9 @@ def stage_group(stage: str) -> str:
     return stage if stage in STAGE_GROUPS else stage.split("-")[0]
 
 
-def timings_markdown(settings: Sequence[str], pushers: dict[str, str], root=".") -> str:
+def timings_markdown(
+    settings: Sequence[str], pushers: dict[str, str], root: str | Path = "."
+) -> str:
     """Wall-clock minutes per kind of stage of each finished recipe run."""
     lines = [
         "| setting | recipe | " + " | ".join(STAGE_GROUPS.values()) + " | total |",
@@ -336,7 +345,9 @@ def recipe_summary(state: dict[str, Any], setting: str) -> str:
     )
 
 
-def plot_meta_iterations(settings, pushers, root, path: Path) -> None:
+def plot_meta_iterations(
+    settings: Sequence[str], pushers: dict[str, str], root: str | Path, path: Path
+) -> None:
     """Error after each meta-iteration, one line per setting, 2-link and 3-link panels."""
     import matplotlib
 
@@ -373,7 +384,9 @@ def plot_meta_iterations(settings, pushers, root, path: Path) -> None:
     plt.close(fig)
 
 
-def plot_ppo_error(settings, pushers, root, path: Path) -> None:
+def plot_ppo_error(
+    settings: Sequence[str], pushers: dict[str, str], root: str | Path, path: Path
+) -> None:
     """The frozen predictor's error on the policy's own episodes during PPO training."""
     import matplotlib
 
@@ -405,7 +418,7 @@ def plot_ppo_error(settings, pushers, root, path: Path) -> None:
     plt.close(fig)
 
 
-def _say_missing(ax, missing: list[str]) -> None:
+def _say_missing(ax: Axes, missing: list[str]) -> None:
     """Name, in the panel, the settings with neither a run directory nor a record (runs
     from before the records: their rows in the table are carried over, their curves lost)."""
     if missing:
@@ -421,7 +434,10 @@ def _read_progress(path: Path) -> list[tuple[int, float]]:
     return sorted(rows.items())  # a resumed run may repeat a row: keep the last
 
 
-def write_outputs(settings, pushers, root=".", out_dir: str | Path = "results") -> list[Path]:
+def write_outputs(
+    settings: Sequence[str], pushers: dict[str, str], root: str | Path = ".",
+    out_dir: str | Path = "results",
+) -> list[Path]:  # fmt: skip
     out = Path(root) / out_dir
     out.mkdir(parents=True, exist_ok=True)
     recorded = [write_record(train_dir(s, pushers[s], root), s, pushers[s], root) for s in settings]

@@ -16,7 +16,7 @@ included).
 from __future__ import annotations
 
 import ctypes
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from functools import cache
 
 import mujoco
@@ -132,7 +132,9 @@ class ChainBatch:
         )  # fmt: skip
 
     def _outcomes(
-        self, ids: np.ndarray, saved: np.ndarray, specs, failures, push_steps: np.ndarray,
+        self, ids: np.ndarray, saved: np.ndarray,
+        specs: Mapping[int, PushSpec] | Sequence[PushSpec],
+        failures: Mapping[int, str | None] | Sequence[str | None], push_steps: np.ndarray,
         settle_steps: np.ndarray, speeds: np.ndarray,
     ) -> list[PushOutcome | None]:  # fmt: skip
         """The pushes' outcomes, the failed chains marked and those that went NaN put back

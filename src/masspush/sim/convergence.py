@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
+from numpy.typing import ArrayLike
 from tqdm import tqdm
 
 from masspush.config import PhysicsConfig
@@ -41,7 +42,7 @@ def _rest_pose(chain: ChainParams, physics: PhysicsConfig, action: np.ndarray) -
     return None if outcome.failure else sim.config()
 
 
-def _summarise(label: str, speeds, diffs) -> list[Deviation]:
+def _summarise(label: str, speeds: ArrayLike, diffs: ArrayLike) -> list[Deviation]:
     rows = []
     speeds = np.asarray(speeds)
     diffs = np.asarray(diffs)

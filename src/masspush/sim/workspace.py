@@ -22,6 +22,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from masspush.config import PhysicsConfig
 from masspush.sim.actions import action_to_push, check_action, push_geometry
@@ -122,7 +123,9 @@ class ReachGovernor:
     workspace: Workspace
     physics: PhysicsConfig
 
-    def __call__(self, action, config: np.ndarray, lengths: Sequence[float]) -> np.ndarray:
+    def __call__(
+        self, action: ArrayLike, config: np.ndarray, lengths: Sequence[float]
+    ) -> np.ndarray:
         """The governed action (float32), `action` itself where its push is safe."""
         a = check_action(action)
         config, lengths = np.asarray(config, float), [float(v) for v in lengths]

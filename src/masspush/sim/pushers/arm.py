@@ -26,6 +26,7 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
+from numpy.typing import ArrayLike
 
 import masspush.sim.pushers.compiled as compiled
 from masspush.config import PhysicsConfig
@@ -418,7 +419,13 @@ class ArmPusher:
         )
 
     def _speed_within_joint_limits(
-        self, model, data, h: _Handles, q: np.ndarray, direction: np.ndarray, speed: float
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        h: _Handles,
+        q: np.ndarray,
+        direction: np.ndarray,
+        speed: float,
     ) -> float:
         """The push speed scaled down, as a robot controller scales a tool motion, so that
         no joint would turn faster than its limit to move the tip at it in pose `q`."""
@@ -439,7 +446,8 @@ class ArmPusher:
         return speed * min(1.0, float(np.min(limit / np.maximum(np.abs(joint_rates), 1e-12))))
 
     def _deliver_compiled(
-        self, lib, model, data, h: _Handles, standoff, target_r, velocity, direction,
+        self, lib: ctypes.CDLL, model: mujoco.MjModel, data: mujoco.MjData, h: _Handles,
+        standoff: np.ndarray, target_r: np.ndarray, velocity: np.ndarray, direction: np.ndarray,
         hold: int, deadline: int,
     ) -> str | None:  # fmt: skip
         """Steps 3 and 4 of `deliver` in compiled code (`compiled`, osc_law.c): the same law
@@ -478,7 +486,9 @@ class ArmPusher:
             self._compiled = (h, arm, flags)  # the arrays live as long as the struct
         return self._compiled[1]
 
-    def place_base(self, model: mujoco.MjModel, data: mujoco.MjData, pos, yaw: float) -> None:
+    def place_base(
+        self, model: mujoco.MjModel, data: mujoco.MjData, pos: ArrayLike, yaw: float
+    ) -> None:
         """Put the arm's base at `pos` on the table, facing `yaw`."""
         h = self._h(model)
         data.mocap_pos[h.mocap] = [pos[0], pos[1], 0.0]
@@ -670,7 +680,10 @@ class ArmPusher:
             q, error, _ = self._solve_ik(model, data, h, target, target_r, q, 150)
         return q, error
 
-    def _cell_solution(self, model, data, h: _Handles, cell: tuple[int, int], height: float):
+    def _cell_solution(
+        self, model: mujoco.MjModel, data: mujoco.MjData, h: _Handles, cell: tuple[int, int],
+        height: float,
+    ) -> tuple[np.ndarray, float]:  # fmt: skip
         """The careful solution for a cell's centre (`_ik_stationary`), at bearing 0."""
         assert self.workspace is not None
         bx, by, byaw = self.workspace.base
@@ -718,14 +731,20 @@ class ArmPusher:
             (i, j): self._cell_solution(model, data, h, (i, j), height) for i in rows for j in turns
         }
 
-    def _careful_ik(self, model, data, h, target, target_r) -> np.ndarray:
+    def _careful_ik(
+        self, model: mujoco.MjModel, data: mujoco.MjData, h: _Handles, target: np.ndarray,
+        target_r: np.ndarray,
+    ) -> np.ndarray:  # fmt: skip
         """The best of solutions from 25 seeds (zero and random, fixed), preferring those
         whose arm links stay `MIN_LINK_HEIGHT` above the table."""
         seeds = [np.zeros(6), *np.random.default_rng(0).uniform(h.low / 2, h.high / 2, (24, 6))]
         solutions = [self._solve_ik(model, data, h, target, target_r, s, 200) for s in seeds]
         return min(solutions, key=lambda r: r[1] + (r[2] < MIN_LINK_HEIGHT))[0]
 
-    def _solve_ik(self, model, data, h, target, target_r, q0, iterations):
+    def _solve_ik(
+        self, model: mujoco.MjModel, data: mujoco.MjData, h: _Handles, target: np.ndarray,
+        target_r: np.ndarray, q0: np.ndarray, iterations: int,
+    ) -> tuple[np.ndarray, float, float]:  # fmt: skip
         """Damped least squares with steps of at most 0.2 rad: (q, error, lowest link height)."""
         q = q0.copy()
         saved = data.qpos[h.qadr].copy()

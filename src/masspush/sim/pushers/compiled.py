@@ -28,6 +28,7 @@ from typing import ClassVar
 
 import mujoco
 import numpy as np
+from numpy.typing import ArrayLike
 
 SOURCE = Path(__file__).with_name("osc_law.c")
 MUJOCO_DIR = Path(mujoco.__file__).parent
@@ -187,7 +188,9 @@ def lockstep_law(lib: ctypes.CDLL, arm: Arm) -> Iterator[None]:
         mujoco.set_mjcb_control(before)
 
 
-def target(x_des, r_des, v_des, free_axis=None) -> Target:
+def target(
+    x_des: ArrayLike, r_des: ArrayLike, v_des: ArrayLike, free_axis: ArrayLike | None = None
+) -> Target:
     t = Target()
     t.x_des[:] = np.asarray(x_des, float).tolist()
     t.r_des[:] = np.asarray(r_des, float).ravel().tolist()
