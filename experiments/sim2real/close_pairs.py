@@ -22,14 +22,13 @@ above the errors counted, which says only that no gain is to be had there.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from statistics import NormalDist
 
 import numpy as np
 
-from masspush.real import PAPER_CLASSES
+from masspush.real import PAPER_CLASSES, read_summary
 
 # The close pairs by class name (link masses, kg): first-link share 0.25 / 0.20, 0.75 / 0.80.
 PAIRS = (("0.064-0.192", "0.064-0.256"), ("0.192-0.064", "0.256-0.064"))
@@ -38,19 +37,14 @@ NORMAL = NormalDist()
 
 def confusion(run: Path) -> tuple[np.ndarray, list[str], int]:
     """The learned arm's tuned-posterior confusion, its classes and pushes per episode."""
-    path = run / "summary.json"
-    if not path.is_file():
-        raise ValueError(f"{run}: no summary.json (not a `masspush sim2real` run directory)")
+    summary = read_summary(run)
     try:
-        summary = json.loads(path.read_text())
         posterior = summary["arms"]["learned"]["posterior"]
         pushes = 2 * int(summary["config"]["segments"])
         return np.array(posterior["confusion"], int), list(posterior["classes"]), pushes
-    except json.JSONDecodeError as err:
-        raise ValueError(f"{path} is not JSON: {err}") from None
     except (KeyError, TypeError):
         raise ValueError(
-            f"{path}: no tuned-posterior confusion for the learned arm (run with --tuned-density)"
+            f"{run}: no tuned-posterior confusion for the learned arm (run with --tuned-density)"
         ) from None
 
 

@@ -15,27 +15,13 @@ docs/notebook/2026-12-05-chain-placement.md:
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
 import numpy as np
 
 from masspush.data import read_recording
-from masspush.real import paired_answers, paired_test
-
-
-def summary(run: Path) -> dict:
-    path = run / "summary.json"
-    if not path.is_file():
-        raise ValueError(f"{run}: no summary.json (not a `masspush sim2real` run directory)")
-    try:
-        run_summary = json.loads(path.read_text())
-    except json.JSONDecodeError as err:
-        raise ValueError(f"{path} is not JSON: {err}") from None
-    if not isinstance(run_summary, dict) or not {"config", "arms"} <= run_summary.keys():
-        raise ValueError(f"{path} is not a `masspush sim2real` summary (no config and arms)")
-    return run_summary
+from masspush.real import paired_answers, paired_test, read_summary
 
 
 def push_speeds(recording: Path) -> str:
@@ -57,7 +43,7 @@ HEADER = ["| arm | model | A | B | only A right | only B right | McNemar p | pus
 
 def compare(a: Path, b: Path, pooled: dict[str, list]) -> list[str]:
     """One pair's rows; each arm's paired answers are added to `pooled`."""
-    first, second = summary(a), summary(b)
+    first, second = read_summary(a), read_summary(b)
     # What draws the chains: the same values, the same chains (episode by episode id).
     for key in ("setting", "seed", "episodes_per_class", "world", "lab", "severity"):
         if first["config"].get(key) != second["config"].get(key):

@@ -15,7 +15,6 @@ episodes, so read the diagonal from the sim2real summaries (cross-validated) ins
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +28,7 @@ from masspush.real import (
     episode_log_probs,
     fit_classifier,
     labelled,
+    read_summary,
 )
 from masspush.settings import get_setting
 
@@ -40,7 +40,10 @@ def main() -> None:
     parser.add_argument("--features", default="lstm", choices=("estimate", "lstm"))
     parser.add_argument("--runs", dest="reading", default="each", choices=("each", "average"))
     args = parser.parse_args()
-    summaries = [json.loads((run / "summary.json").read_text()) for run in args.runs]
+    try:
+        summaries = [read_summary(run) for run in args.runs]
+    except ValueError as err:
+        parser.error(str(err))
     setting = {s["config"]["setting"] for s in summaries}
     if len(setting) != 1:
         raise SystemExit(f"the directories hold different settings: {sorted(setting)}")

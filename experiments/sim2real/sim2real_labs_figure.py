@@ -13,12 +13,18 @@ rerunning sim2real on a directory re-scores its kept recordings).
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 import numpy as np
 
-from masspush.real import ARMS, FEATURE_KINDS, FEATURE_NAMES, paired_test, plot_accuracy_by_pushes
+from masspush.real import (
+    ARMS,
+    FEATURE_KINDS,
+    FEATURE_NAMES,
+    paired_test,
+    plot_accuracy_by_pushes,
+    read_summary,
+)
 
 
 def main() -> None:
@@ -28,7 +34,10 @@ def main() -> None:
     args = parser.parse_args()
     results = {}
     for run in args.runs:
-        summary = json.loads((run / "summary.json").read_text())
+        try:
+            summary = read_summary(run)
+        except ValueError as err:
+            parser.error(str(err))
         if any("by_runs" not in arm for arm in summary["arms"].values()):
             raise SystemExit(f"{run}: no by_runs; rerun masspush sim2real there (segments > 1)")
         lab = summary["config"].get("lab")

@@ -1,5 +1,6 @@
 import json
 import math
+from dataclasses import asdict
 
 import numpy as np
 import pytest
@@ -16,6 +17,7 @@ from masspush.real.transfer import (
     paired_test,
     plot_accuracy_by_pushes,
     reach_note,
+    read_summary,
     run_counts,
     run_sim2real,
     summary_markdown,
@@ -74,6 +76,25 @@ def test_a_rerun_reuses_the_recordings(run):
     assert again["arms"]["learned"]["reused"] is True
     assert (out / "learned.jsonl").read_bytes() == before
     assert again["arms"]["learned"]["estimate"] == results["arms"]["learned"]["estimate"]
+
+
+@pytest.mark.slow
+def test_a_run_directory_reads_back_as_the_summary_it_wrote(run):
+    out, _ = run
+    summary = read_summary(out)
+    assert summary["config"] == json.loads(json.dumps(asdict(CONFIG)))
+    assert summary["arms"].keys() == {"random", "learned"}
+
+
+def test_a_directory_without_a_summary_is_a_one_line_error(tmp_path):
+    with pytest.raises(ValueError, match=r"no summary\.json"):
+        read_summary(tmp_path)
+    (tmp_path / "summary.json").write_text("{")
+    with pytest.raises(ValueError, match="cannot be read as JSON"):
+        read_summary(tmp_path)
+    (tmp_path / "summary.json").write_text('{"config": {}}')
+    with pytest.raises(ValueError, match="no config and arms"):
+        read_summary(tmp_path)
 
 
 def test_the_summary_says_which_filter_arm_weighed_the_reach():

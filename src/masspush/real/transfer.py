@@ -632,6 +632,25 @@ def run_counts(segments: int) -> list[int]:
     return [*counts, segments]
 
 
+SUMMARY_FILE = "summary.json"
+"""What `run_sim2real` writes in its output directory: the config and each arm's scores."""
+
+
+def read_summary(run: str | Path) -> dict[str, Any]:
+    """The summary `run_sim2real` wrote in the directory `run`; a one-line ValueError where
+    there is none or it is not one."""
+    path = Path(run) / SUMMARY_FILE
+    if not path.is_file():
+        raise ValueError(f"{run}: no {SUMMARY_FILE} (not a `masspush sim2real` run directory)")
+    try:
+        summary = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise ValueError(f"{path} cannot be read as JSON: {' '.join(str(err).split())}") from None
+    if not isinstance(summary, dict) or not {"config", "arms"} <= summary.keys():
+        raise ValueError(f"{path} is not a `masspush sim2real` summary (no config and arms)")
+    return summary
+
+
 def run_sim2real(
     config: Sim2RealConfig, out_dir: str | Path, progress: bool = True, workers: Workers = None
 ) -> dict[str, Any]:
@@ -656,7 +675,7 @@ def run_sim2real(
         for kind in FEATURE_KINDS
         if kind in random["kinds"] and kind in learned["kinds"]
     }
-    (out / "summary.json").write_text(json.dumps(results, indent=2) + "\n")
+    (out / SUMMARY_FILE).write_text(json.dumps(results, indent=2) + "\n")
     (out / "summary.md").write_text(summary_markdown(results))
     if config.segments > 1:
         plot_accuracy_by_pushes({"": results}, out / "accuracy-by-pushes.png")
