@@ -19,7 +19,6 @@ episode (exact McNemar). For docs/notebook/2026-12-06-free-last-push.md:
 from __future__ import annotations
 
 import argparse
-import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +34,7 @@ from masspush.real import (
     labelled_pushes,
     paired_test,
     posterior_accuracy,
+    record_tuning,
     tune_density,
     tuned_classes,
 )
@@ -47,10 +47,7 @@ def tuned_on_first(merged: Recording, pushes: int, density):
     cut = first_pushes(labelled_pushes(merged), pushes)
     config = TuneConfig(folds=0)
     tuned = tune_density(density, cut, masses[labels], config)
-    tuned.meta["tuned"] = {
-        "classes": {c: m.tolist() for c, m in zip(classes, masses, strict=True)},
-        "config": dataclasses.asdict(config),
-    }
+    record_tuning(tuned, classes, masses, config, cut)
     print(f"tuned on the first {pushes} pushes of {len(labels)} calibration episodes")
     return tuned
 

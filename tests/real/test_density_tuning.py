@@ -1,3 +1,4 @@
+import copy
 import warnings
 
 import numpy as np
@@ -18,8 +19,11 @@ from masspush.real.density_tuning import (
     first_pushes,
     friction_grid,
     labelled_pushes,
+    posterior_accuracy,
     push_ladder,
+    record_tuning,
     tune_density,
+    tuned_classes,
 )
 
 SETTING = "real-ur10"
@@ -234,3 +238,24 @@ def test_a_density_tuned_on_short_episodes_warns_where_it_sorts_longer_ones(lab,
     density.meta["tuned"]["pushes_per_episode"] = 8.0
     with pytest.warns(CalibrationWarning, match="^here was tuned"):
         check_calibration_length(density, 10.1, "here")
+
+
+def test_a_density_tuned_outside_the_command_is_recorded_so_sorting_and_the_length_check_read_it(
+    lab,
+):
+    teacher, student, recording, _, _ = lab
+    teacher = copy.deepcopy(teacher)  # the fixture's is shared
+    masses = np.array(list(CLASSES.values()))
+    pushes = first_pushes(labelled_pushes(recording), 2)
+    with pytest.raises(ValueError, match="not a tuned density"):
+        tuned_classes(student, "student.pt")
+    config = TuneConfig(frictions=4)
+    record_tuning(teacher, list(CLASSES), masses, config, pushes, {"from": "teacher"})
+    names, read = tuned_classes(teacher, "teacher.pt")
+    assert names == list(CLASSES) and np.allclose(read, masses)
+    assert teacher.meta["tuned"]["pushes_per_episode"] == 2.0
+    assert teacher.meta["tuned"]["config"]["frictions"] == 4
+    assert teacher.meta["tuned"]["from"] == "teacher"
+    assert posterior_accuracy(teacher, recording, "lab.jsonl")["accuracy"] >= 0.9
+    with pytest.warns(CalibrationWarning, match="2.0 pushes on average and sorts episodes of 8.0"):
+        check_calibration_length(teacher, 8.0, "teacher.pt")

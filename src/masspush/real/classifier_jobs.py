@@ -4,7 +4,7 @@ the classifier itself, `masspush.real.density_tuning` the push density tuned to 
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -36,6 +36,7 @@ from masspush.real.density_tuning import (
     labelled_pushes,
     posterior_classes,
     pushes_per_episode,
+    record_tuning,
     tune_density,
 )
 from masspush.real.robot import check_geometry, model_speed_reader
@@ -327,15 +328,9 @@ def tune(job: TuneDensityJob, config: TuneConfig, progress: bool = True) -> list
             *("  " + " ".join(f"{v:4d}" for v in row) for row in scores["confusion"]),
         ]
     tuned = tune_density(density, pushes, masses[labels], config, progress)
-    tuned.meta["tuned"] = {
-        "episodes": list(job.episodes),
-        "classes": {name: row.tolist() for name, row in zip(classes, masses, strict=True)},
-        "from": str(path),
-        "from_digest": density.digest(),
-        "config": asdict(config),
-        "cross_validation": scores,
-        "pushes_per_episode": per_episode,
-    }
+    provenance = {"episodes": list(job.episodes), "from": str(path),
+                  "from_digest": density.digest(), "cross_validation": scores}  # fmt: skip
+    record_tuning(tuned, classes, masses, config, pushes, provenance)
     Path(job.out).parent.mkdir(parents=True, exist_ok=True)
     tuned.save(job.out)
     return [*lines, *episode_counts(recording, classes), f"saved {job.out} (tuned on all)"]

@@ -299,6 +299,22 @@ def check_calibration_length(density: PushDensity, pushes: float, where: str) ->
         )
 
 
+def record_tuning(
+    tuned: PushDensity, classes: list[str], masses: np.ndarray, config: TuneConfig,
+    pushes: list[LabelledPush], provenance: dict[str, Any] | None = None,
+) -> None:  # fmt: skip
+    """Write what `tuned_classes`, `posterior_classes` and `check_calibration_length` read
+    back into `tuned.meta["tuned"]`: the class masses (C, n), the tuning config, the
+    calibration's pushes per episode; `provenance` (where the episodes and the untuned
+    density came from, the cross-validation) is kept beside them."""
+    tuned.meta["tuned"] = {
+        "classes": {name: row.tolist() for name, row in zip(classes, masses, strict=True)},
+        "config": asdict(config),
+        "pushes_per_episode": pushes_per_episode(pushes),
+        **(provenance or {}),
+    }
+
+
 def tuned_classes(density: PushDensity, where: str) -> tuple[list[str], np.ndarray]:
     """The class names and masses (C, n) a tuned density was tuned on."""
     tuned = density.meta.get("tuned")
