@@ -1,5 +1,7 @@
+import re
 import warnings
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,6 +18,7 @@ from masspush.real.backends import (
     make_robot,
 )
 from masspush.real.robot import run_estimation
+from masspush.sim.actions import PushGeometry
 
 SETTING = "2link-1-10"
 
@@ -268,3 +271,71 @@ def test_the_governor_keeps_chains_in_reach_that_full_speed_pushes_lose():
 
 def predictor_for(setting: str):
     return load_model(resolve_model("rp", setting), setting)[0]
+
+
+def documented_python(marker: str) -> str:
+    """The one unindented Python block of docs/real-robot.md that contains `marker`."""
+    text = (Path(__file__).parents[2] / "docs" / "real-robot.md").read_text()
+    [block] = [b for b in re.findall(r"^```python\n(.*?)^```", text, re.S | re.M) if marker in b]
+    return block
+
+
+class LabDriver:
+    """What the documented sketch calls `arm` and `tracker`: here a simulated chain, pushed
+    by the contact point, direction and speed the sketch computes."""
+
+    def __init__(self, sim):
+        self.sim, self.failure, self.still = sim, None, True  # ChainSim starts at rest
+
+    def push(self, contact, direction, speed):
+        geometry = PushGeometry(np.asarray(contact), np.asarray(direction), float(speed))
+        self.failure = self.sim.pusher.deliver(
+            self.sim.model, self.sim.data, geometry, self.sim.physics
+        )
+        self.still = False
+        return self.failure != "unreachable", self.sim.pusher.executed_speed
+
+    def wait_until_still(self):
+        if not self.still and self.failure is None:
+            self.failure, _ = self.sim.settle()
+        self.still = True
+
+    def chain_config(self):
+        return self.sim.config()
+
+    def chain_tipped(self):
+        return self.failure is not None
+
+    def reaches_all_of(self, config):
+        return self.sim.reach_failure() is None
+
+    def stop(self):
+        pass
+
+
+def test_the_documented_robot_sketch_pushes_the_labs_chain_where_the_simulation_would():
+    """docs/real-robot.md's `MyUR10`, run as written on a chain of another geometry than the
+    models': the rest poses after each push are those the simulation reaches from the same
+    actions, so the sketch places its pushes on the lab's chain as `ChainSim` does."""
+    from masspush.config import ChainGeometry
+    from masspush.settings import get_setting
+    from masspush.sim.chain import sample_chain
+    from masspush.sim.simulate import ChainSim
+
+    namespace: dict = {}
+    exec(documented_python("class MyUR10"), namespace)
+    lab = ChainGeometry(link_width=0.05, link_height=0.03, joint_gap=0.02, tool_radius=0.006)
+    physics = get_setting("real-ur10").physics().with_geometry(lab)
+    chain = sample_chain(physics, np.random.default_rng(3))
+    driver, reference = LabDriver(ChainSim(chain, physics)), ChainSim(chain, physics)
+    robot = namespace["MyUR10"](driver, driver, chain.lengths, lab)
+    assert np.array_equal(robot.start().config, reference.config())
+    moved = 0.0
+    for action in [(0.3, 0.8), (-0.25, 0.2), (0.4, 0.6)]:
+        report = robot.push(np.array(action))
+        outcome = reference.push(np.array(action))
+        assert report.failure == outcome.failure is None
+        assert np.array_equal(report.config, reference.config())
+        assert report.speed == pytest.approx(outcome.executed_speed)
+        moved = max(moved, float(np.abs(report.config[:2] - chain.root_pose[:2]).max()))
+    assert moved > 0.01  # the pushes moved the chain: the comparison is not of rest with rest
