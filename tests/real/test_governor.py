@@ -9,21 +9,7 @@ from masspush.sim import reach_governor
 SETTING = get_setting("real-ur10")
 
 
-def slippery_recording(path, slide_per_speed: float, pushes: int = 400):
-    """Random pushes on chains along +x, each carried slide_per_speed x speed along the push."""
-    rng = np.random.default_rng(1)
-    episodes = []
-    for i in range(pushes):
-        a1 = rng.uniform(0.02, 1.0)  # > 0: towards +y on a chain along +x
-        slide = min(slide_per_speed * 5.0 * a1, 0.3) * rng.uniform(0.5, 1.0)
-        start = [0.0, -0.1, 0.0, 0.0]
-        episodes.append({"id": str(i), "lengths": [0.125, 0.125],
-                         "observations": [start, [0.0, -0.1 + slide, 0.0, 0.0]],
-                         "actions": [[a1, 0.0]]})  # fmt: skip
-    return write_recording(path, Recording(n_links=2, setting=SETTING.name, episodes=episodes))
-
-
-def test_a_governor_fitted_to_a_slippery_table_slows_pushes_more(tmp_path):
+def test_a_governor_fitted_to_a_slippery_table_slows_pushes_more(tmp_path, slippery_recording):
     shipped = reach_governor(SETTING.pusher, SETTING.physics())
     path = slippery_recording(tmp_path / "lab.jsonl", slide_per_speed=0.2)
     assert len(recording_pushes(path)[0]) == 400
@@ -38,7 +24,7 @@ def test_a_governor_fitted_to_a_slippery_table_slows_pushes_more(tmp_path):
     )
 
 
-def test_too_short_a_recording_is_refused_naming_it(tmp_path):
+def test_too_short_a_recording_is_refused_naming_it(tmp_path, slippery_recording):
     shipped = reach_governor(SETTING.pusher, SETTING.physics())
     path = slippery_recording(tmp_path / "short.jsonl", 0.2, pushes=10)
     with pytest.raises(ValueError, match=r"short\.jsonl: too few pushes"):

@@ -1,7 +1,11 @@
+import re
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
-from masspush.data.recording import Recording, write_recording
+from masspush.data.recording import Recording, read_recording, write_recording
 from masspush.data.rollout import RandomPolicy
 from masspush.learn.predictor import load_model
 from masspush.models import resolve_model
@@ -153,3 +157,193 @@ def test_a_seed_too_large_for_its_chains_is_refused_first():
     # its chains' seeds (a million a session) would overflow the policies' 64-bit seeds
     with pytest.raises(ValueError, match="seed must be an integer <= 4294967295"):
         SessionConfig(robot="stiff", setting=SETTING, model="rp", seed=2**32)
+
+
+LAB_ROBOT = '''
+from masspush.real import SimRobot
+
+made = []
+
+
+class LabRobot:
+    """A lab's robot as masspush sees it: the simulation stands in, without its truth."""
+
+    def __init__(self, setting):
+        self._sim = SimRobot(setting, seed=5, pushes=1000)
+        self.n_links = self._sim.n_links
+        made.append(self)
+
+    def start(self):
+        return self._sim.start()
+
+    def push(self, action):
+        self.pushed = True
+        return self._sim.push(action)
+
+    def close(self):
+        self.closed = True
+
+
+def not_a_robot(setting):
+    made.append(object())
+    return made[-1]
+
+
+def measured(setting):
+    from masspush.config import ChainGeometry
+
+    robot = LabRobot(setting)
+    robot.geometry = ChainGeometry(0.05, 0.03, 0.02, 0.006)  # not the models' chain
+    return robot
+
+
+def mismeasured(setting):
+    robot = LabRobot(setting)
+    robot.geometry = (0.05, 0.03, 0.02, 0.006)
+    return robot
+'''
+
+
+@pytest.fixture
+def lab_module(tmp_path, monkeypatch):
+    """`masspush run` started in a folder that holds the lab's module (found there as
+    `python -m` would); the module, Python's path and its module cache restored after."""
+    (tmp_path / "my_lab_robot.py").write_text(LAB_ROBOT)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(sys, "path", [p for p in sys.path if p not in ("", str(tmp_path))])
+    monkeypatch.delitem(sys.modules, "my_lab_robot", raising=False)
+    yield tmp_path
+    sys.modules.pop("my_lab_robot", None)
+
+
+def test_your_own_robot_runs_a_session_with_the_settings_governor_and_its_stated_masses(
+    lab_module, capsys
+):
+    from masspush.cli import main
+
+    assert main(["run", "--robot", "my_lab_robot:LabRobot", "--setting", "real-ur10",
+                 "--model", "rp", "--pushes", "3", "--count", "2", "--masses", "0.064,0.192",
+                 "--label", "light-heavy", "--record", "lab.jsonl"]) == 0  # fmt: skip
+    out = capsys.readouterr().out
+    assert "Your robot has no governor: it gets real-ur10's" in out
+    (robot,) = sys.modules["my_lab_robot"].made
+    assert robot.closed and robot.governor is not None  # the stationary UR10's
+    recording = read_recording(lab_module / "lab.jsonl")
+    assert recording.robot == "my_lab_robot:LabRobot"
+    assert len(recording.episodes) == 2
+    for episode in recording.episodes:
+        assert np.allclose(episode["masses"], [0.064, 0.192])
+    assert {e["label"] for e in recording.episodes} == {"light-heavy"}
+
+
+def test_your_own_robots_chain_geometry_is_checked_against_the_models_and_recorded(lab_module):
+    from masspush.real.robot import GeometryWarning
+
+    config = SessionConfig(robot="my_lab_robot:measured", setting="real-ur10", model="rp",
+                           record="lab.jsonl")  # fmt: skip
+    with pytest.warns(GeometryWarning, match="joint_gap 0.04 m vs 0.02 m"):
+        run_session(config, say=lambda _: None)
+    (robot,) = sys.modules["my_lab_robot"].made
+    assert read_recording(lab_module / "lab.jsonl").geometry == robot.geometry
+
+
+def test_your_own_robot_gets_the_governor_fitted_to_your_tables_random_pushes(
+    lab_module, slippery_recording
+):
+    from masspush.real.governor import fit_governor
+    from masspush.settings import get_setting
+    from masspush.sim import reach_governor
+
+    path = slippery_recording(lab_module / "random.jsonl", slide_per_speed=0.2)
+    config = SessionConfig(robot="my_lab_robot:LabRobot", setting="real-ur10", model="rp",
+                           pushes=2, governor_fit=str(path), record="lab.jsonl")  # fmt: skip
+    said = []
+    run_session(config, say=said.append)
+    (robot,) = sys.modules["my_lab_robot"].made
+    shipped = reach_governor("ur10-stationary", get_setting("real-ur10").physics())
+    bounds = ("slide_base", "slide_per_speed", "slide_max")
+    got, fit = robot.governor.workspace, fit_governor(shipped, path).workspace
+    assert [getattr(got, b) for b in bounds] == [getattr(fit, b) for b in bounds]
+    assert got.slide_per_speed != shipped.workspace.slide_per_speed
+    assert f"Speed governor fitted to the pushes in {path}." in said
+    assert "fitted to" in read_recording(lab_module / "lab.jsonl").robot
+
+
+@pytest.mark.parametrize(
+    ("robot", "governor_fit", "error"),
+    [
+        ("my_lab_robot:", None, "is named package.module:factory"),
+        ("my lab:LabRobot", None, "is named package.module:factory"),
+        (
+            "no_such_lab_module:LabRobot",
+            None,
+            "importing no_such_lab_module failed: ModuleNotFoundError",
+        ),
+        ("my_lab_robot:Robot", None, "my_lab_robot has no callable 'Robot'"),
+        ("my_lab_robot:not_a_robot", None, "made a object without start, push, close"),
+        ("my_lab_robot:mismeasured", None, "its geometry is a tuple, not a"),
+        ("my_lab_robot:LabRobot", "short.jsonl", "short.jsonl: too few pushes"),
+    ],
+)
+def test_a_bad_robot_of_your_own_is_refused_before_any_push(
+    lab_module, slippery_recording, robot, governor_fit, error
+):
+    if governor_fit:
+        slippery_recording(lab_module / governor_fit, 0.2, pushes=10)
+    with pytest.raises(ValueError, match=error):
+        config = SessionConfig(robot=robot, setting="real-ur10", model="rp",
+                               governor_fit=governor_fit, record="lab.jsonl")  # fmt: skip
+        run_session(config, say=lambda _: None)
+    module = sys.modules.get("my_lab_robot")
+    assert not any(getattr(r, "pushed", False) for r in getattr(module, "made", []))
+    assert not (lab_module / "lab.jsonl").exists()
+
+
+def lab_workflow_commands() -> list[str]:
+    """The shell commands of docs/real-robot.md's "Your lab, step by step", continuation
+    lines joined, in order."""
+    text = (Path(__file__).parents[2] / "docs" / "real-robot.md").read_text()
+    section = text.split("## Your lab, step by step", 1)[1].split("\n## ", 1)[0]
+    blocks = re.findall(r"^ *```bash\n(.*?)^ *```", section, re.S | re.M)
+    joined = "\n".join(blocks).replace("\\\n", " ")
+    return [" ".join(line.split()) for line in joined.splitlines() if line.strip()]
+
+
+@pytest.mark.slow
+def test_the_documented_lab_workflow_runs_on_your_own_robot(lab_module, capsys):
+    """Steps 3-5 of "Your lab, step by step" as written, on the simulation standing in for
+    a lab's robot, with fewer episodes, runs and classes: random pushes, the governor fitted
+    to them, a labelled calibration run of the filter, the density tuned to it, and a test
+    session sorted by it."""
+    from masspush.cli import main
+
+    lines = lab_workflow_commands()
+    assert lines[0].startswith("R=") and lines[0].endswith(":make_robot")
+    random, loop, calibrate, done, tune, classify = lines[1:]
+    assert (loop.startswith("for m in ") and loop.endswith("; do")) and done == "done"
+    classes = loop.removeprefix("for m in ").removesuffix("; do").split()
+    assert len(classes) == 5
+
+    def run(command: str, **fewer: str) -> None:
+        for old, new in fewer.items():  # the docs' counts, cut down: each must be there
+            assert f" {old} " in f" {command} ", f"{old!r} is no longer in: {command}"
+            command = f" {command} ".replace(f" {old} ", f" {new} ").strip()
+        command = command.replace("$R", "my_lab_robot:LabRobot")
+        assert command.startswith("masspush ")
+        assert main(command.split()[1:]) == 0, command
+
+    run(random, **{"--count 150": "--count 20"})
+    for m in classes[:2]:
+        label = m.replace(",", "-")
+        step = calibrate.replace("$m", m).replace("${m/,/-}", label)
+        run(step, **{"--count 30": "--count 5", "--segments 16": "--segments 1"})
+        test = step.replace("calibration.jsonl", "test.jsonl")
+        run(test, **{"--count 30": "--count 2", "--segments 16": "--segments 1"})
+    capsys.readouterr()
+    run(tune)
+    assert "tuned (5-fold cross-validated)" in capsys.readouterr().out
+    run(classify)
+    assert "accuracy on the 4 labelled episode(s)" in capsys.readouterr().out
+    calibration = read_recording(lab_module / "calibration.jsonl")
+    assert {e["label"] for e in calibration.episodes} == {"0.064-0.192", "0.064-0.256"}
+    assert "speed governor fitted to random.jsonl" in calibration.robot

@@ -40,7 +40,7 @@ EXPORTS = {
                  "score_arm", "sim2real"),
     "randomisation": ("RandomiseConfig", "RandomiseRun", "randomise", "run_randomised"),
     "robot_env": ("RobotEnv",),
-    "governor": ("episode_pushes", "fit_governor", "recording_pushes"),
+    "governor": ("episode_pushes", "fit_governor", "fitted_setting_governor", "recording_pushes"),
     "filter_arm": ("FilterArm",),
 }  # fmt: skip
 __getattr__ = lazy(__name__, EXPORTS)

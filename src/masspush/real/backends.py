@@ -3,7 +3,10 @@ behind the `masspush.real.robot.Robot` interface, and `make_robot` to pick one b
 
 from __future__ import annotations
 
+import importlib
 import os
+import sys
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -150,6 +153,53 @@ BACKENDS = ("target", "replay")
 """Robot backends besides the simulated pushers."""
 
 
+def is_lab_robot(backend: str) -> bool:
+    """Whether `backend` names a lab's own robot, `package.module:factory`, not a shipped one."""
+    return ":" in backend
+
+
+def check_lab_robot_name(backend: str) -> None:
+    """ValueError naming `backend` unless it reads `package.module:factory` (checked before
+    anything is imported or run)."""
+    module, _, factory = backend.partition(":")
+    if not all(part.isidentifier() for part in module.split(".")) or not factory.isidentifier():
+        raise ValueError(
+            f"robot {backend!r}: a robot of your own is named package.module:factory, e.g. "
+            "mylab.robot:make_robot"
+        )
+
+
+def load_lab_robot(backend: str) -> Callable[[Setting], Robot]:
+    """The factory `backend` (`package.module:factory`) names: called with the `Setting`, it
+    returns the lab's `Robot`. The module is looked for on the Python path and in the current
+    directory (as `python -m` would find it)."""
+    check_lab_robot_name(backend)
+    module_name, _, name = backend.partition(":")
+    if os.getcwd() not in sys.path and "" not in sys.path:
+        sys.path.append(os.getcwd())
+    try:
+        module = importlib.import_module(module_name)
+    except Exception as err:  # the lab's module: any error in it is its own
+        raise ValueError(
+            f"robot {backend!r}: importing {module_name} failed: {type(err).__name__}: {err}"
+        ) from None
+    factory = getattr(module, name, None)
+    if not callable(factory):
+        raise ValueError(f"robot {backend!r}: {module_name} has no callable {name!r}")
+    return factory
+
+
+def check_robot(robot: object, backend: str) -> None:
+    """ValueError naming `backend` where what its factory made is not a `Robot`."""
+    missing = [m for m in ("start", "push", "close") if not callable(getattr(robot, m, None))]
+    if missing or not isinstance(getattr(robot, "n_links", None), int):
+        lacks = ", ".join([*missing, *([] if missing else ["an int n_links"])])
+        raise ValueError(
+            f"robot {backend!r} made a {type(robot).__name__} without {lacks}: a robot has "
+            "n_links, start(), push(action) and close() (docs/real-robot.md)"
+        )
+
+
 def make_robot(
     backend: str,
     setting: str | Setting,
@@ -161,11 +211,19 @@ def make_robot(
     pushes: int | None = None,
 ) -> Robot:
     """A robot by backend name: stiff, kuka, ur10 (simulated), target (the sim-to-real
-    target world, `masspush.real.target_world`; `lab` keeps one lab's constants) or replay (a
-    recording). `pushes`: the most pushes an episode may get (a simulated robot's episode
-    otherwise ends after the setting's)."""
+    target world, `masspush.real.target_world`; `lab` keeps one lab's constants), replay (a
+    recording), or a lab's own, `package.module:factory` (`load_lab_robot`; `masses` are
+    then only the chain's known masses, for the recording). `pushes`: the most pushes an
+    episode may get (a simulated robot's episode otherwise ends after the setting's)."""
     if lab is not None and backend != "target":
         raise ValueError(f"a lab is one draw of the target world; backend {backend!r} has none")
+    if is_lab_robot(backend):
+        from masspush.settings import get_setting
+
+        factory = load_lab_robot(backend)
+        robot = factory(get_setting(setting) if isinstance(setting, str) else setting)
+        check_robot(robot, backend)
+        return robot
     if backend in PUSHERS:
         return SimRobot(setting, backend, seed, masses, pushes, allow_out_of_range)
     if backend == "target":
@@ -174,4 +232,7 @@ def make_robot(
         if recording is None:
             raise ValueError("the replay backend needs --episodes FILE (a recording)")
         return ReplayRobot(recording)
-    raise ValueError(f"unknown robot backend {backend!r}; known: {[*PUSHERS, *BACKENDS]}")
+    raise ValueError(
+        f"unknown robot backend {backend!r}; known: {[*PUSHERS, *BACKENDS]}, or your own as "
+        "package.module:factory"
+    )

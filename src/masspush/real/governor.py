@@ -11,13 +11,18 @@ from __future__ import annotations
 
 import dataclasses
 import os
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from masspush.config import PhysicsConfig
 from masspush.data.recording import read_recording
 from masspush.data.rollout import Episodes
+from masspush.sim.pushers import reach_governor
 from masspush.sim.workspace import ReachGovernor, fit_slides, push_slides
+
+if TYPE_CHECKING:
+    from masspush.settings import Setting
 
 
 def episode_pushes(episodes: Episodes) -> tuple[np.ndarray, ...]:
@@ -56,3 +61,16 @@ def fit_governor(
     except ValueError as err:
         raise ValueError(f"{path}: {err}") from None
     return ReachGovernor(dataclasses.replace(governor.workspace, **bounds), governor.physics)
+
+
+def fitted_setting_governor(setting: Setting, path: str | os.PathLike) -> ReachGovernor:
+    """The speed governor `setting`'s models were trained with, its slide bounds fitted to the
+    random pushes recorded in `path`; ValueError where the setting's robot follows the chain
+    (it has none) or the recording cannot be fitted."""
+    governor = reach_governor(setting.pusher, setting.physics())
+    if governor is None:
+        raise ValueError(
+            f"governor_fit: {setting.name}'s pusher {setting.pusher!r} follows the chain; "
+            "only a stationary robot has a speed governor"
+        )
+    return fit_governor(governor, path)

@@ -11,14 +11,29 @@ from typing import Any
 import numpy as np
 
 from masspush.bayes.estimator import BAYES_MODELS
-from masspush.config import SEED_MAX, check_input, check_int, check_match, check_output
+from masspush.config import (
+    SEED_MAX,
+    ChainGeometry,
+    check_input,
+    check_int,
+    check_match,
+    check_output,
+)
 from masspush.data.recording import Recording, read_recording, write_recording
 from masspush.learn.policy import model_policy
 from masspush.learn.predictor import load_model
 from masspush.models import resolve_model
-from masspush.real.backends import BACKENDS, RecordedPolicy, make_robot
+from masspush.real.backends import (
+    BACKENDS,
+    RecordedPolicy,
+    check_lab_robot_name,
+    is_lab_robot,
+    make_robot,
+)
 from masspush.real.filter_arm import FilterArm, check_bayes_options
+from masspush.real.governor import fitted_setting_governor
 from masspush.real.robot import (
+    Robot,
     check_geometry,
     fmt,
     model_speed_reader,
@@ -27,7 +42,8 @@ from masspush.real.robot import (
     speed_reader,
 )
 from masspush.settings import Setting, get_setting
-from masspush.sim.pushers import PUSHERS
+from masspush.sim.pushers import PUSHERS, reach_governor
+from masspush.sim.workspace import ReachGovernor
 
 SESSION_SEEDS = 1_000_000
 """Seeds each session's `--seed` owns: its chains are drawn from SESSION_SEEDS * seed on, one
@@ -41,7 +57,9 @@ class SessionConfig:
     """`masspush run`: estimation episodes through a robot backend (simulated or replayed)."""
 
     robot: str
-    """The backend: stiff, kuka, ur10 (simulated), target (the sim-to-real world) or replay."""
+    """The backend: stiff, kuka, ur10 (simulated), target (the sim-to-real world), replay, or
+    your own robot as package.module:factory (called with the setting, it returns your
+    `Robot`; docs/real-robot.md)."""
     setting: str
     """Named setting, e.g. 2link-0.1-1."""
     model: str = "tp+"
@@ -59,7 +77,8 @@ class SessionConfig:
     record: str | None = None
     """Write the session to this recording (appended to one of the same setting)."""
     masses: tuple[float, ...] | None = None
-    """Simulated robots: pin the link masses, kg (m1,m2,...)."""
+    """The link masses, kg (m1,m2,...): simulated robots pin them; for your own robot, the
+    chain's known masses, written into the recording (tune-density needs them)."""
     label: str | None = None
     """Class label written into the recording."""
     allow_out_of_range: bool = False
@@ -80,6 +99,10 @@ class SessionConfig:
     """The model reads each push the robot reports the speed of as the action at which its
     own pusher would have moved at that speed (`masspush.real.robot.speed_reader`);
     --no-read-speeds: as the action commanded."""
+    governor_fit: str | None = None
+    """Fit the robot's speed governor to the random pushes recorded in this file (your
+    table's slides; docs/real-robot.md, 'A stationary robot'): a stationary robot's
+    sessions after the first."""
     bayes: dict[str, Any] | None = None
     """`BayesConfig` fields changed for the particle filter (model bayes or bayes-random;
     `masspush run --bayes KEY=VALUE`), e.g. {"reach_weight": 0} for pushes chosen for their
@@ -88,8 +111,13 @@ class SessionConfig:
     def __post_init__(self) -> None:
         check_bayes_options(self.bayes, self.model in BAYES_MODELS)
         known = (*PUSHERS, *BACKENDS)
-        if self.robot not in known:
-            raise ValueError(f"robot must be one of {list(known)}, got {self.robot!r}")
+        if is_lab_robot(self.robot):
+            check_lab_robot_name(self.robot)
+        elif self.robot not in known:
+            raise ValueError(
+                f"robot must be one of {list(known)} or package.module:factory (your own), "
+                f"got {self.robot!r}"
+            )
         check_int("count", self.count, optional=True)
         check_int("pushes", self.pushes, optional=True)
         check_int("seed", self.seed, 0, high=SEED_MAX)
@@ -120,6 +148,10 @@ class SessionConfig:
             raise ValueError(f"label must be printable text, got {self.label!r}")
         if self.record is not None:
             check_output(self.record, "record")
+        if self.governor_fit is not None:
+            if self.robot == "replay":
+                raise ValueError("governor_fit slows the pushes a robot makes; a replay's are made")
+            check_input(self.governor_fit, "governor_fit")
 
 
 def run_session(config: SessionConfig, say: Callable[[str], object] = print) -> list[dict]:
@@ -153,17 +185,32 @@ def run_session(config: SessionConfig, say: Callable[[str], object] = print) -> 
     if not config.read_speeds:
         read_speed = None
     pushes = setting.env_config().pushes if config.pushes is None else config.pushes
+    fitted = None  # fitted before any robot is made: a bad recording stops nothing running
+    if config.governor_fit is not None:
+        fitted = fitted_setting_governor(setting, config.governor_fit)
     first = SESSION_SEEDS * config.seed
     robot = make_robot(
         config.robot, setting, config.episodes_file, first,
         config.masses, config.lab, config.allow_out_of_range, pushes * config.segments,
     )  # fmt: skip
-    if robot.n_links != setting.n_links:
+    try:
+        if robot.n_links != setting.n_links:
+            raise ValueError(
+                f"the robot's chain has {robot.n_links} links, setting {setting.name!r} has "
+                f"{setting.n_links}"
+            )
+        _govern(robot, setting, config, fitted, say)
+        geometry = getattr(robot, "geometry", None)  # your robot's chain, as you measured it
+        if geometry is not None and not isinstance(geometry, ChainGeometry):
+            raise ValueError(
+                f"robot {config.robot!r}: its geometry is a {type(geometry).__name__}, not a "
+                "masspush.config.ChainGeometry"
+            )
+    except ValueError:
         robot.close()
-        raise ValueError(
-            f"the robot's chain has {robot.n_links} links, setting {setting.name!r} has "
-            f"{setting.n_links}"
-        )
+        raise
+    if geometry is not None and filter_arm is None:
+        check_geometry(meta, geometry)
     if config.robot == "replay":
         try:
             _check_replay(robot.recording, setting, config)
@@ -206,16 +253,42 @@ def run_session(config: SessionConfig, say: Callable[[str], object] = print) -> 
             truth = getattr(robot, "truth", {})
             if "mass_distribution" in truth:
                 say(f"  truth    {fmt(truth['mass_distribution'])}")
-            recorded.append(episode.recorded(id="", masses=truth.get("masses"), label=config.label))
+            masses = truth.get("masses", config.masses)  # your robot's: the ones you stated
+            recorded.append(episode.recorded(id="", masses=masses, label=config.label))
     finally:
         robot.close()
         if filter_arm is not None:
             filter_arm.close()
     if config.record:
-        robot_name = f"masspush simulation ({config.robot})"
-        written, total = _record(config.record, existing, setting, robot_name, recorded)
+        robot_name = config.robot if is_lab_robot(config.robot) else (
+            f"masspush simulation ({config.robot})")  # fmt: skip
+        if config.governor_fit is not None:
+            robot_name += f", speed governor fitted to {config.governor_fit}"
+        written, total = _record(config.record, existing, setting, robot_name, recorded, geometry)
         say(f"recorded {written} episode(s) to {config.record} ({total} in all)")
     return recorded
+
+
+def _govern(
+    robot: Robot, setting: Setting, config: SessionConfig, fitted: ReachGovernor | None,
+    say: Callable,
+) -> None:  # fmt: skip
+    """Give the robot the speed governor its pushes go through: your own robot without a
+    `governor` attribute the setting's (its models were trained with it); where
+    `config.governor_fit` named a recording, the setting's `fitted` to it."""
+    if is_lab_robot(config.robot) and not hasattr(robot, "governor"):
+        robot.governor = reach_governor(setting.pusher, setting.physics())
+        if robot.governor is not None:
+            say(f"Your robot has no governor: it gets {setting.name}'s, as its models were "
+                "trained (docs/real-robot.md, 'A stationary robot').")  # fmt: skip
+    if fitted is not None:
+        if getattr(robot, "governor", None) is None:
+            raise ValueError(
+                f"governor_fit: robot {config.robot!r} follows the chain; only a stationary "
+                "robot has a speed governor"
+            )
+        robot.governor = fitted
+        say(f"Speed governor fitted to the pushes in {config.governor_fit}.")
 
 
 def _check_replay(recording: Recording, setting: Setting, config: SessionConfig) -> None:
@@ -254,13 +327,17 @@ def _recording_to_extend(path: str | None, setting: Setting) -> Recording | None
 
 
 def _record(
-    path: str, recording: Recording | None, setting: Setting, robot: str, episodes: list[dict]
-) -> tuple[int, int]:
+    path: str, recording: Recording | None, setting: Setting, robot: str, episodes: list[dict],
+    geometry: ChainGeometry | None = None,
+) -> tuple[int, int]:  # fmt: skip
     """Write episodes to a recording, appending to `recording` where the file exists (one
-    file can then gather several runs, e.g. one per labelled class)."""
+    file can then gather several runs, e.g. one per labelled class); a new one's header
+    carries the chain's `geometry` where the robot gave it."""
     usable = [e for e in episodes if len(e["actions"])]
     if recording is None:
-        recording = Recording(n_links=setting.n_links, robot=robot, setting=setting.name)
+        recording = Recording(
+            n_links=setting.n_links, robot=robot, setting=setting.name, geometry=geometry
+        )
     start = len(recording.episodes)
     for i, e in enumerate(usable):
         e["id"] = f"{e.get('label') or 'episode'}-{start + i + 1:04d}"

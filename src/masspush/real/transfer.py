@@ -40,6 +40,7 @@ from masspush.real.classifier import (
 )
 from masspush.real.density_tuning import check_calibration_length, posterior_accuracy
 from masspush.real.filter_arm import FilterArm, check_bayes_options
+from masspush.real.governor import fitted_setting_governor
 from masspush.sim.simulate import REACH_FAILURES
 
 if TYPE_CHECKING:
@@ -49,7 +50,6 @@ if TYPE_CHECKING:
     from masspush.real.robot import HistoryPredictor, Robot
     from masspush.real.target_world import TargetWorld
     from masspush.settings import Setting
-    from masspush.sim.workspace import ReachGovernor
 
 HAND_YAW_SCATTER = 5.0
 """How far a chain laid by hand strays from the heading asked (`Sim2RealConfig.start_yaw`),
@@ -260,7 +260,12 @@ def record_classes(
     failures: dict[str, int] = {}
     classes: dict[str, dict[str, int]] = {}
     world = target or scaled_world(config.severity)
-    shared = (config, predictor, policy, world, _fitted_governor(config, setting))
+    governor = (
+        None
+        if config.governor_fit is None
+        else fitted_setting_governor(setting, config.governor_fit)
+    )
+    shared = (config, predictor, policy, world, governor)
     jobs = list(range(len(PAPER_CLASSES)))
     if is_pool(workers):
         results = gather(workers.imap(_record_class, jobs, shared, desc or None), len(jobs))
@@ -274,22 +279,6 @@ def record_classes(
         for reason, count in class_failures.items():
             failures[reason] = failures.get(reason, 0) + count
     return recording, failures, classes
-
-
-def _fitted_governor(config: Sim2RealConfig, setting: Setting) -> ReachGovernor | None:
-    """The speed governor fitted to `config.governor_fit` (once, before any episode), or None."""
-    if config.governor_fit is None:
-        return None
-    from masspush.real.governor import fit_governor
-    from masspush.sim.pushers import reach_governor
-
-    governor = reach_governor(setting.pusher, setting.physics())
-    if governor is None:
-        raise ValueError(
-            f"governor_fit: {setting.name}'s pusher {setting.pusher!r} follows the chain; "
-            "only a stationary robot has a speed governor"
-        )
-    return fit_governor(governor, config.governor_fit)
 
 
 def _speed_reader(config: Sim2RealConfig) -> SpeedReader | None:
