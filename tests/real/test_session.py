@@ -197,6 +197,10 @@ def measured(setting):
     return robot
 
 
+def unplugged(setting):
+    raise ConnectionError("no arm at 10.0.0.2")
+
+
 def mismeasured(setting):
     robot = LabRobot(setting)
     robot.geometry = (0.05, 0.03, 0.02, 0.006)
@@ -282,6 +286,7 @@ def test_your_own_robot_gets_the_governor_fitted_to_your_tables_random_pushes(
         ("my_lab_robot:Robot", None, "my_lab_robot has no callable 'Robot'"),
         ("my_lab_robot:not_a_robot", None, "made a object without start, push, close"),
         ("my_lab_robot:mismeasured", None, "its geometry is a tuple, not a"),
+        ("my_lab_robot:unplugged", None, "making it failed: ConnectionError: no arm at"),
         ("my_lab_robot:LabRobot", "short.jsonl", "short.jsonl: too few pushes"),
     ],
 )

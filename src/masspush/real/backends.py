@@ -221,7 +221,12 @@ def make_robot(
         from masspush.settings import get_setting
 
         factory = load_lab_robot(backend)
-        robot = factory(get_setting(setting) if isinstance(setting, str) else setting)
+        try:
+            robot = factory(get_setting(setting) if isinstance(setting, str) else setting)
+        except Exception as err:  # the lab's code: its error, in one line (its hardware's too)
+            raise ValueError(
+                f"robot {backend!r}: making it failed: {type(err).__name__}: {err}"
+            ) from None
         check_robot(robot, backend)
         return robot
     if backend in PUSHERS:
