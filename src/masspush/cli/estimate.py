@@ -78,6 +78,6 @@ COMMANDS = [
             _demo_options, _demo),
     Command("evaluate", GROUP, "a model or the particle filter on fresh simulated episodes",
             _evaluate_options, _evaluate),
-    Command("run", GROUP, "estimation episodes through a robot backend (simulated or replayed)",
+    Command("run", GROUP, "estimation episodes through a robot: simulated, replayed or your own",
             _run_options, _run),
 ]  # fmt: skip

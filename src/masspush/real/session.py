@@ -54,7 +54,7 @@ shared all but one chain (docs/notebook/2026-12-06-overlapping-seeds.md)."""
 
 @dataclass(frozen=True)
 class SessionConfig:
-    """`masspush run`: estimation episodes through a robot backend (simulated or replayed)."""
+    """`masspush run`: estimation episodes through a robot: simulated, replayed or your own."""
 
     robot: str
     """The backend: stiff, kuka, ur10 (simulated), target (the sim-to-real world), replay, or
