@@ -1,5 +1,6 @@
 import re
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -197,6 +198,18 @@ def measured(setting):
     return robot
 
 
+class Tiring(LabRobot):
+    """Stopped (Ctrl-C) as its third episode starts."""
+
+    starts = 0
+
+    def start(self):
+        Tiring.starts += 1
+        if Tiring.starts == 3:
+            raise KeyboardInterrupt
+        return super().start()
+
+
 def unplugged(setting):
     raise ConnectionError("no arm at 10.0.0.2")
 
@@ -238,6 +251,23 @@ def test_your_own_robot_runs_a_session_with_the_settings_governor_and_its_stated
     for episode in recording.episodes:
         assert np.allclose(episode["masses"], [0.064, 0.192])
     assert {e["label"] for e in recording.episodes} == {"light-heavy"}
+
+
+def test_a_session_stopped_part_way_keeps_the_episodes_it_finished_and_goes_on(lab_module):
+    said = []
+    config = SessionConfig(robot="my_lab_robot:Tiring", setting="real-ur10", model="rp",
+                           count=5, label="a", record="lab.jsonl")  # fmt: skip
+    with pytest.raises(KeyboardInterrupt):
+        run_session(config, say=said.append)
+    assert said[-1] == "recorded 2 episode(s) to lab.jsonl (2 in all)"
+    assert [e["id"] for e in read_recording(lab_module / "lab.jsonl").episodes] == [
+        "a-0001",
+        "a-0002",
+    ]
+    assert [p.name for p in lab_module.iterdir() if "partial" in p.name] == []
+    run_session(replace(config, count=3), say=said.append)  # the rest, appended
+    ids = [e["id"] for e in read_recording(lab_module / "lab.jsonl").episodes]
+    assert ids == [f"a-{i:04d}" for i in range(1, 6)]
 
 
 def test_your_own_robots_chain_geometry_is_checked_against_the_models_and_recorded(lab_module):

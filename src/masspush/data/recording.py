@@ -119,7 +119,8 @@ class Recording:
 
 
 def write_recording(path: str | os.PathLike, recording: Recording) -> Path:
-    """Write a recording (checked first: a file we write always reads back)."""
+    """Write a recording (checked first: a file we write always reads back), whole or not
+    at all."""
     path = Path(path)
     header = {
         "format": FORMAT,
@@ -144,7 +145,11 @@ def write_recording(path: str | os.PathLike, recording: Recording) -> Path:
     if problems:
         raise RecordingError(path, problems)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("\n".join(lines) + "\n")
+    # Written beside and moved over: a write cut short (a session stopped, a full disk)
+    # leaves the file as it was, never half of it.
+    partial = path.with_name(f".{path.name}.partial")
+    partial.write_text("\n".join(lines) + "\n")
+    os.replace(partial, path)
     return path
 
 

@@ -239,7 +239,15 @@ def run_session(config: SessionConfig, say: Callable[[str], object] = print) -> 
         policy, count = model_policy(meta, path), config.count or 1
         episode_pushes = [pushes] * count
         say(f"Pushes chosen by the {policy.name} policy of model {config.model!r}.")
-    recorded = []
+    target = existing
+    if config.record and target is None:
+        robot_name = config.robot if is_lab_robot(config.robot) else (
+            f"masspush simulation ({config.robot})")  # fmt: skip
+        if config.governor_fit is not None:
+            robot_name += f", speed governor fitted to {config.governor_fit}"
+        target = Recording(setting.n_links, robot=robot_name, setting=setting.name,
+                           geometry=geometry)  # fmt: skip
+    recorded, written = [], 0
     try:
         for i in range(count):
             say(f"episode {i + 1}:")
@@ -255,17 +263,18 @@ def run_session(config: SessionConfig, say: Callable[[str], object] = print) -> 
                 say(f"  truth    {fmt(truth['mass_distribution'])}")
             masses = truth.get("masses", config.masses)  # your robot's: the ones you stated
             recorded.append(episode.recorded(id="", masses=masses, label=config.label))
+            if target is not None and len(recorded[-1]["actions"]):
+                # Written as each episode ends: a session stopped part way (a long one on a
+                # real robot) keeps every episode it finished.
+                _append(config.record, target, recorded[-1])
+                written += 1
     finally:
         robot.close()
         if filter_arm is not None:
             filter_arm.close()
-    if config.record:
-        robot_name = config.robot if is_lab_robot(config.robot) else (
-            f"masspush simulation ({config.robot})")  # fmt: skip
-        if config.governor_fit is not None:
-            robot_name += f", speed governor fitted to {config.governor_fit}"
-        written, total = _record(config.record, existing, setting, robot_name, recorded, geometry)
-        say(f"recorded {written} episode(s) to {config.record} ({total} in all)")
+        if target is not None:
+            say(f"recorded {written} episode(s) to {config.record} "
+                f"({len(target.episodes)} in all)")  # fmt: skip
     return recorded
 
 
@@ -326,21 +335,10 @@ def _recording_to_extend(path: str | None, setting: Setting) -> Recording | None
     return recording
 
 
-def _record(
-    path: str, recording: Recording | None, setting: Setting, robot: str, episodes: list[dict],
-    geometry: ChainGeometry | None = None,
-) -> tuple[int, int]:  # fmt: skip
-    """Write episodes to a recording, appending to `recording` where the file exists (one
-    file can then gather several runs, e.g. one per labelled class); a new one's header
-    carries the chain's `geometry` where the robot gave it."""
-    usable = [e for e in episodes if len(e["actions"])]
-    if recording is None:
-        recording = Recording(
-            n_links=setting.n_links, robot=robot, setting=setting.name, geometry=geometry
-        )
-    start = len(recording.episodes)
-    for i, e in enumerate(usable):
-        e["id"] = f"{e.get('label') or 'episode'}-{start + i + 1:04d}"
-    recording.episodes.extend(usable)
+def _append(path: str, recording: Recording, episode: dict) -> None:
+    """Add one episode to the recording (named for its class and its place in the file, so
+    that a file gathering several sessions, e.g. one per class, keeps its ids unique) and
+    write the file."""
+    episode["id"] = f"{episode.get('label') or 'episode'}-{len(recording.episodes) + 1:04d}"
+    recording.episodes.append(episode)
     write_recording(path, recording)
-    return len(usable), len(recording.episodes)
