@@ -1,4 +1,5 @@
 import copy
+import re
 import warnings
 
 import numpy as np
@@ -20,6 +21,7 @@ from masspush.real.density_tuning import (
     friction_grid,
     labelled_pushes,
     posterior_accuracy,
+    posterior_classes,
     push_ladder,
     record_tuning,
     tune_density,
@@ -259,3 +261,30 @@ def test_a_density_tuned_outside_the_command_is_recorded_so_sorting_and_the_leng
     assert posterior_accuracy(teacher, recording, "lab.jsonl")["accuracy"] >= 0.9
     with pytest.warns(CalibrationWarning, match="2.0 pushes on average and sorts episodes of 8.0"):
         check_calibration_length(teacher, 8.0, "teacher.pt")
+
+
+def test_classify_reads_each_episode_from_its_first_pushes_where_told(tmp_path):
+    teacher = tiny_density(1, mass_scale=5.0)  # classes a push or two cannot tell apart
+    recording_file = tmp_path / "close.jsonl"
+    recording = record(recording_file, lab_episodes(teacher, 6, 8, seed=0))
+    record_tuning(
+        teacher, list(CLASSES), np.array(list(CLASSES.values())), TuneConfig(frictions=4),
+        first_pushes(labelled_pushes(recording), 1),
+    )  # fmt: skip
+    density = tmp_path / "lab.pt"
+    teacher.save(density)
+    sureness = {}
+    for pushes in (1, None):
+        _, log_post = posterior_classes(teacher, recording, "lab.jsonl", pushes)
+        job = ClassifyJob(str(recording_file), density=str(density), pushes=pushes)
+        if pushes is None:  # all 8 pushes against a calibration of 1: the length warning
+            with pytest.warns(CalibrationWarning, match="1.0 pushes on average"):
+                lines = classify_by_posterior(job)
+        else:
+            lines = classify_by_posterior(job)
+        printed = [float(re.search(r"p=([0-9.]+)", line)[1]) for line in lines[:-1]]
+        assert printed == pytest.approx(np.exp(log_post.max(1)), abs=0.006)
+        sureness[pushes] = np.mean(printed)
+    assert sureness[None] > sureness[1] + 0.01  # more pushes, surer: the cut was made
+    with pytest.raises(ValueError, match="--pushes is for --density"):
+        ClassifyJob(str(recording_file), classifier=str(density), pushes=2)

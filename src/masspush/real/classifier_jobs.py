@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from masspush.config import check_input, check_match, check_output
+from masspush.config import check_input, check_int, check_match, check_output
 from masspush.data.recording import Recording, iter_recording, read_recording
 from masspush.learn.predictor import check_batch_memory, load_model
 from masspush.learn.push_density import DENSITY_BYTES_PER_PUSH, density_for, load_push_density
@@ -33,6 +33,7 @@ from masspush.real.density_tuning import (
     check_calibration_length,
     class_masses,
     cross_validate_tuning,
+    first_pushes,
     labelled_pushes,
     posterior_classes,
     pushes_per_episode,
@@ -164,10 +165,18 @@ class ClassifyJob:
     each episode sorted by its class posterior."""
     allow_mismatch: bool = False
     """Classify a recording of another setting (same number of links)."""
+    pushes: int | None = None
+    """With --density: sort each episode from its first P pushes only (e.g. 2, the paper's
+    protocol, on a recording of longer runs); default: all of them."""
 
     def __post_init__(self) -> None:
         if (self.classifier is None) == (self.density is None):
             raise ValueError("give either --classifier or --density (a tuned push density)")
+        check_int("pushes", self.pushes, optional=True)
+        if self.pushes is not None and self.density is None:
+            raise ValueError(
+                "pushes: a classifier reads the runs it was trained on; --pushes is for --density"
+            )
         for name in ("classifier", "density"):
             if getattr(self, name) is not None:
                 check_input(getattr(self, name), name)
@@ -229,9 +238,10 @@ def classify_by_posterior(job: ClassifyJob) -> list[str]:
         if i == 0:
             check_recording_fits(piece, job.episodes, density.meta.get("setting"),
                                  density.meta["n_links"], job.allow_mismatch)  # fmt: skip
-            length = pushes_per_episode(labelled_pushes(piece))
+            length = pushes_per_episode(first_pushes(labelled_pushes(piece), job.pushes))
             check_calibration_length(density, length, f"density: {job.density}")
-        classes, log_post = posterior_classes(density, piece, f"density: {job.density}")
+        classes, log_post = posterior_classes(density, piece, f"density: {job.density}",
+                                              job.pushes)  # fmt: skip
         answers += [(e["id"], e.get("label"), classes[int(row.argmax())], float(np.exp(row.max())))
                     for e, row in zip(piece.episodes, log_post, strict=True)]  # fmt: skip
     return answer_lines(answers)
