@@ -16,6 +16,7 @@ from masspush.real.target_world import TargetWorldRobot
 from masspush.sim.pushers import PUSHERS, reach_governor
 
 if TYPE_CHECKING:
+    from masspush.config import ChainGeometry
     from masspush.settings import Setting
 
 
@@ -99,6 +100,11 @@ class ReplayRobot:
         """The current episode's recorded actions (what a `RecordedPolicy` replays)."""
         assert self.episode is not None, "start() first"
         return np.asarray(self.episode["actions"], np.float32)
+
+    @property
+    def geometry(self) -> ChainGeometry | None:
+        """The chain's geometry, where the recording's header gives it."""
+        return self.recording.geometry
 
     def start(self) -> RestPose:
         if self._next >= len(self.recording.episodes):
@@ -192,11 +198,12 @@ def load_lab_robot(backend: str) -> Callable[[Setting], Robot]:
 def check_robot(robot: object, backend: str) -> None:
     """ValueError naming `backend` where what its factory made is not a `Robot`."""
     missing = [m for m in ("start", "push", "close") if not callable(getattr(robot, m, None))]
-    if missing or not isinstance(getattr(robot, "n_links", None), int):
-        lacks = ", ".join([*missing, *([] if missing else ["an int n_links"])])
+    if not isinstance(getattr(robot, "n_links", None), int):
+        missing.append("an int n_links")
+    if missing:
         raise ValueError(
-            f"robot {backend!r} made a {type(robot).__name__} without {lacks}: a robot has "
-            "n_links, start(), push(action) and close() (docs/real-robot.md)"
+            f"robot {backend!r} made a {type(robot).__name__} without {', '.join(missing)}: a "
+            "robot has n_links, start(), push(action) and close() (docs/real-robot.md)"
         )
 
 

@@ -200,7 +200,8 @@ def run_session(config: SessionConfig, say: Callable[[str], object] = print) -> 
                 f"{setting.n_links}"
             )
         _govern(robot, setting, config, fitted, say)
-        geometry = getattr(robot, "geometry", None)  # your robot's chain, as you measured it
+        # The chain as measured: your robot's, or the one a replayed recording names.
+        geometry = getattr(robot, "geometry", None)
         if geometry is not None and not isinstance(geometry, ChainGeometry):
             raise ValueError(
                 f"robot {config.robot!r}: its geometry is a {type(geometry).__name__}, not a "
@@ -217,8 +218,6 @@ def run_session(config: SessionConfig, say: Callable[[str], object] = print) -> 
         except ValueError:
             robot.close()
             raise
-        if robot.recording.geometry is not None:
-            check_geometry(meta, robot.recording.geometry)
         policy = RecordedPolicy(robot)
         count = len(robot.recording.episodes) if config.count is None else config.count
         # A replay plays every recorded push unless --pushes asks for fewer.
@@ -247,7 +246,8 @@ def run_session(config: SessionConfig, say: Callable[[str], object] = print) -> 
             robot_name += f", speed governor fitted to {config.governor_fit}"
         target = Recording(setting.n_links, robot=robot_name, setting=setting.name,
                            geometry=geometry)  # fmt: skip
-    recorded, written = [], 0
+    recorded = []
+    before = 0 if target is None else len(target.episodes)
     try:
         for i in range(count):
             say(f"episode {i + 1}:")
@@ -267,13 +267,12 @@ def run_session(config: SessionConfig, say: Callable[[str], object] = print) -> 
                 # Written as each episode ends: a session stopped part way (a long one on a
                 # real robot) keeps every episode it finished.
                 _append(config.record, target, recorded[-1])
-                written += 1
     finally:
         robot.close()
         if filter_arm is not None:
             filter_arm.close()
         if target is not None:
-            say(f"recorded {written} episode(s) to {config.record} "
+            say(f"recorded {len(target.episodes) - before} episode(s) to {config.record} "
                 f"({len(target.episodes)} in all)")  # fmt: skip
     return recorded
 
