@@ -92,6 +92,21 @@ def test_a_recording_round_trips_and_becomes_predictor_input(tmp_path):
     np.testing.assert_allclose(episodes.masses[0], [0.16, 0.16])
 
 
+def test_a_write_cut_short_leaves_the_recording_as_it_was(tmp_path, monkeypatch):
+    path = write_recording(tmp_path / "r.jsonl", Recording(2, episodes=[EPISODE]))
+    before = path.read_text()
+
+    def full_disk(*_):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr("masspush.data.recording.os.replace", full_disk)
+    longer = Recording(2, episodes=[EPISODE, {**EPISODE, "id": "a-02"}])
+    with pytest.raises(OSError, match=r"r\.jsonl: cannot write the recording: No space left"):
+        write_recording(path, longer)
+    assert path.read_text() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.jsonl"]  # no partial file left
+
+
 def test_a_recording_read_at_its_speeds_passes_each_push_through_the_reader():
     seen = []
 

@@ -270,6 +270,23 @@ def test_a_session_stopped_part_way_keeps_the_episodes_it_finished_and_goes_on(l
     assert ids == [f"a-{i:04d}" for i in range(1, 6)]
 
 
+def test_an_episode_the_recording_could_not_take_is_not_counted_as_recorded(
+    lab_module, monkeypatch
+):
+    from masspush.real import session
+
+    def full_disk(path, recording):
+        raise OSError(f"{path}: cannot write the recording: No space left on device")
+
+    monkeypatch.setattr(session, "write_recording", full_disk)
+    said = []
+    config = SessionConfig(robot="my_lab_robot:LabRobot", setting="real-ur10", model="rp",
+                           count=2, record="lab.jsonl")  # fmt: skip
+    with pytest.raises(OSError, match="No space left"):
+        run_session(config, say=said.append)
+    assert said[-1] == "recorded 0 episode(s) to lab.jsonl (0 in all)"
+
+
 def test_your_own_robots_chain_geometry_is_checked_against_the_models_and_recorded(lab_module):
     from masspush.real.robot import GeometryWarning
 

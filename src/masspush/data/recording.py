@@ -21,6 +21,7 @@ a file with any problem and returns it as `Episodes` (the predictor's input).
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -148,8 +149,13 @@ def write_recording(path: str | os.PathLike, recording: Recording) -> Path:
     # Written beside and moved over: a write cut short (a session stopped, a full disk)
     # leaves the file as it was, never half of it.
     partial = path.with_name(f".{path.name}.partial")
-    partial.write_text("\n".join(lines) + "\n")
-    os.replace(partial, path)
+    try:
+        partial.write_text("\n".join(lines) + "\n")
+        os.replace(partial, path)
+    except OSError as err:
+        with contextlib.suppress(OSError):
+            partial.unlink(missing_ok=True)
+        raise OSError(f"{path}: cannot write the recording: {err.strerror or err}") from None
     return path
 
 

@@ -340,4 +340,8 @@ def _append(path: str, recording: Recording, episode: dict) -> None:
     write the file."""
     episode["id"] = f"{episode.get('label') or 'episode'}-{len(recording.episodes) + 1:04d}"
     recording.episodes.append(episode)
-    write_recording(path, recording)
+    try:
+        write_recording(path, recording)
+    except (OSError, ValueError):
+        recording.episodes.pop()  # not written: not counted as recorded
+        raise
