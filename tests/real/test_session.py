@@ -154,6 +154,16 @@ def test_sessions_with_other_seeds_never_share_a_chain():
     assert len(set(starts)) == len(starts) == 9
 
 
+def test_a_session_on_another_day_in_a_lab_records_which_lab_and_day(tmp_path):
+    path = tmp_path / "day.jsonl"
+    config = SessionConfig(robot="target", setting=SETTING, model="rp", lab=3, day=2,
+                           record=str(path))  # fmt: skip
+    run_session(config, say=lambda _: None)
+    assert read_recording(path).robot == "masspush simulation (target), lab 3, day 2"
+    with pytest.raises(ValueError, match="day is a day in one lab"):
+        SessionConfig(robot="target", setting=SETTING, model="rp", day=2)
+
+
 def test_a_seed_too_large_for_its_chains_is_refused_first():
     # its chains' seeds (a million a session) would overflow the policies' 64-bit seeds
     with pytest.raises(ValueError, match="seed must be an integer <= 4294967295"):

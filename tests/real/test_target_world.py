@@ -168,6 +168,41 @@ def test_each_object_of_a_lab_has_its_own_centre_of_mass_offsets():
     assert 0 < np.abs(shift).max() <= TargetWorld().com_offset
 
 
+def test_another_day_in_a_lab_drifts_its_table_robot_and_tracker_but_keeps_its_objects():
+    def started(day, world=None):
+        r = TargetWorldRobot(SETTING, world, seed=3, masses=(2.0, 6.0), lab=4, day=day)
+        r.start()
+        return r
+
+    first, later, again = started(0), started(2), started(2)
+    np.testing.assert_array_equal(lab_constants(again), lab_constants(later))  # one draw a day
+    lab = later.lab
+    assert lab.friction_factor != 1 and lab.speed_factor != 1
+    assert later.truth["friction"] == pytest.approx(first.truth["friction"] * lab.friction_factor)
+    assert later.gain == pytest.approx(first.gain * lab.speed_factor)
+    # The table's pattern stays, scaled with its mean.
+    xy = np.array([[0.1, -0.2], [-0.3, 0.05]])
+    np.testing.assert_allclose(later.field(xy), first.field(xy) * lab.friction_factor)
+    assert not np.isin(later.bias, first.bias).any()  # the tracker recalibrated
+    # The same objects, lengths, tool and chain placement on every day.
+    for name in ("lengths", "told_lengths"):
+        np.testing.assert_array_equal(getattr(lab, name), getattr(first.lab, name))
+    assert later.contact == first.contact
+    offsets = [r.sim.model.body_ipos[r.sim.model.geom_bodyid[r._boxes], 0] for r in (first, later)]
+    np.testing.assert_array_equal(*offsets)
+    np.testing.assert_allclose(later.sim.config(), first.sim.config(), atol=1e-9)
+    assert started(1).lab.friction_factor != lab.friction_factor  # each day its own
+    # Without drift a later day differs only in its tracker's calibration.
+    still = started(2, TargetWorld(day_friction_drift=0.0, day_speed_drift=0.0))
+    assert (still.truth["friction"], still.gain) == (first.truth["friction"], first.gain)
+
+
+def test_a_day_is_a_day_in_a_lab():
+    with pytest.raises(ValueError, match="lab"):
+        TargetWorldRobot(SETTING, day=1)
+    assert make_robot("target", SETTING, lab=2, day=3).lab.day == 3
+
+
 def test_a_lab_cannot_be_drawn_from_world_ranges():
     with pytest.raises(ValueError, match="lab"):
         TargetWorldRobot(SETTING, WorldRanges(), lab=0)
@@ -184,7 +219,7 @@ def test_make_robot_knows_the_target_backend():
 @pytest.mark.parametrize(
     "field, value",
     [("timestep", 0.0), ("obs_noise", -1.0), ("friction_range", (0.0, 1.0)),
-     ("solver", "Jacobi"), ("cone", "round")],
+     ("solver", "Jacobi"), ("cone", "round"), ("day_friction_drift", -0.1)],
 )  # fmt: skip
 def test_invalid_world_parameters_are_refused(field, value):
     with pytest.raises(ValueError, match=field):

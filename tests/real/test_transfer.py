@@ -191,6 +191,8 @@ def test_the_target_worlds_differences_can_be_scaled(run, tmp_path):
         Sim2RealConfig(world="training", severity=0.5)
     with pytest.raises(ValueError, match="needs world 'target'"):
         Sim2RealConfig(world="training", lab=0)
+    with pytest.raises(ValueError, match="day is a day in one lab"):
+        Sim2RealConfig(day=1)
     with pytest.raises(ValueError, match="severity"):
         Sim2RealConfig(severity=-0.1)
 
@@ -442,6 +444,7 @@ def test_each_class_s_robot_pushes_that_class_s_chains_in_the_world_asked():
         again = class_robot(setting, 3, seed=5, pushes=4)
         np.testing.assert_allclose(again.start().config, class_robot(setting, 3, 5).start().config)
         again.close()
+        assert class_robot(setting, 3, 5, TargetWorld(), lab=2, day=4).lab.day == 4
     finally:
         training.close()
         lab.close()

@@ -61,7 +61,7 @@ def _sim2real_options(p: argparse.ArgumentParser) -> None:
     from masspush.real.transfer import Sim2RealConfig, Sim2RealJob
 
     add_fields(p, Sim2RealConfig, only=("setting", "episodes_per_class", "seed", "world",
-                                        "severity", "lab", "start_range", "start_yaw",
+                                        "severity", "lab", "day", "start_range", "start_yaw",
                                         "segments", "governor_fit", "density", "tuned_density",
                                         "check_reach", "read_speeds"))  # fmt: skip
     add_fields(p, ClassifierConfig, only=("folds", "runs"), prefix="classifier_")

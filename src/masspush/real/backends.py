@@ -216,9 +216,11 @@ def make_robot(
     lab: int | None = None,
     allow_out_of_range: bool = False,
     pushes: int | None = None,
+    day: int = 0,
 ) -> Robot:
     """A robot by backend name: stiff, kuka, ur10 (simulated), target (the sim-to-real
-    target world, `masspush.real.target_world`; `lab` keeps one lab's constants), replay (a
+    target world, `masspush.real.target_world`; `lab` keeps one lab's constants, on its day
+    `day`), replay (a
     recording), or a lab's own, `package.module:factory` (`load_lab_robot`; `masses` are
     then only the chain's known masses, for the recording). `pushes`: the most pushes an
     episode may get (a simulated robot's episode otherwise ends after the setting's)."""
@@ -239,7 +241,7 @@ def make_robot(
     if backend in PUSHERS:
         return SimRobot(setting, backend, seed, masses, pushes, allow_out_of_range)
     if backend == "target":
-        return TargetWorldRobot(setting, seed=seed, masses=masses, lab=lab)
+        return TargetWorldRobot(setting, seed=seed, masses=masses, lab=lab, day=day)
     if backend == "replay":
         if recording is None:
             raise ValueError("the replay backend needs --episodes FILE (a recording)")

@@ -93,6 +93,9 @@ class SessionConfig:
     lab: int | None = None
     """target: keep one lab's table, calibration, robot and chains (drawn from this seed)
     for every episode."""
+    day: int = 0
+    """target, with lab: which day in the lab (0 the day it was calibrated; another, a day
+    whose table friction, speed gain and tracker calibration have drifted)."""
     settings_file: str | None = None
     """TOML file with custom settings."""
     read_speeds: bool = True
@@ -125,6 +128,9 @@ class SessionConfig:
         check_int("lab", self.lab, 0, optional=True)
         if self.lab is not None and self.robot != "target":
             raise ValueError(f"lab is one draw of the target world; robot {self.robot!r} has none")
+        check_int("day", self.day, 0, high=SEED_MAX)
+        if self.day and self.lab is None:
+            raise ValueError("day is a day in one lab: pass --lab too")
         if self.episodes_file is not None and self.robot != "replay":
             raise ValueError(f"episodes_file is for the replay robot, not {self.robot!r}")
         if self.robot == "replay":
@@ -192,6 +198,7 @@ def run_session(config: SessionConfig, say: Callable[[str], object] = print) -> 
     robot = make_robot(
         config.robot, setting, config.episodes_file, first,
         config.masses, config.lab, config.allow_out_of_range, pushes * config.segments,
+        config.day,
     )  # fmt: skip
     try:
         if robot.n_links != setting.n_links:
@@ -242,6 +249,8 @@ def run_session(config: SessionConfig, say: Callable[[str], object] = print) -> 
     if config.record and target is None:
         robot_name = config.robot if is_lab_robot(config.robot) else (
             f"masspush simulation ({config.robot})")  # fmt: skip
+        if config.lab is not None:
+            robot_name += f", lab {config.lab}" + (f", day {config.day}" if config.day else "")
         if config.governor_fit is not None:
             robot_name += f", speed governor fitted to {config.governor_fit}"
         target = Recording(setting.n_links, robot=robot_name, setting=setting.name,

@@ -100,6 +100,14 @@ class TargetWorld:
     """Per-episode factor on a1 (the push speed) ~ U(range)."""
     contact_bias: float = 0.03
     """Std of the per-episode bias on a2 (where along the link the tool lands)."""
+    # --- from one day to the next in a lab (`Lab`'s day) ---------------------------------
+    day_friction_drift: float = 0.1
+    """Relative std of a day's factor on the lab's table friction, the same factor over the
+    whole table (cleaned, humid, dusty; the field's pattern stays); the tracker is also
+    recalibrated each day (a new bias of `obs_bias`'s std)."""
+    day_speed_drift: float = 0.03
+    """Relative std of a day's factor on the lab's speed gain (a warm or cold arm, another
+    payload setting)."""
 
     def __post_init__(self) -> None:
         for name in ("timestep", "link_width", "link_height"):
@@ -107,7 +115,7 @@ class TargetWorld:
                 raise ValueError(f"{name} must be positive, got {getattr(self, name)!r}")
         for name in (
             "com_offset", "length_error", "obs_noise", "action_noise", "contact_bias",
-            "friction_variation", "torsional_friction",
+            "friction_variation", "torsional_friction", "day_friction_drift", "day_speed_drift",
         ):  # fmt: skip
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
@@ -286,10 +294,17 @@ class FrictionField:
 
 class Lab:
     """One lab's constants in `world`, drawn once from `seed` [ours]: what stays the same
-    from one episode to the next in a real lab (see the module's docstring)."""
+    from one episode to the next in a real lab (see the module's docstring).
 
-    def __init__(self, seed: int, world: TargetWorld, physics: PhysicsConfig) -> None:
+    `day` 0 is the day its models were calibrated (every lab figure before 2026-12-07 was
+    measured on it); another day draws that day's drift from `world` (`day_*`) around day 0
+    once, the same for every episode that day: the table's friction and the robot's speed
+    gain scaled, the tracker recalibrated. The objects, their lengths and the tool are the
+    lab's own on every day."""
+
+    def __init__(self, seed: int, world: TargetWorld, physics: PhysicsConfig, day: int = 0):
         self.seed = seed
+        self.day = day
         rng = np.random.default_rng([seed, 11])
         n = physics.n_links
         self.friction = float(rng.uniform(*world.friction_range))
@@ -302,6 +317,17 @@ class Lab:
         self.gain = float(rng.uniform(*world.speed_gain))
         self.contact = float(rng.normal(0, world.contact_bias))
         self.com_offset = world.com_offset
+        self.friction_factor = self.speed_factor = 1.0
+        if day:  # drawn apart from day 0's draws, which stay as they were
+            rng = np.random.default_rng([seed, 19, day])
+            self.friction_factor = float(np.clip(rng.normal(1, world.day_friction_drift), 0.5, 1.5))
+            self.speed_factor = float(np.clip(rng.normal(1, world.day_speed_drift), 0.5, 1.5))
+            self.friction *= self.friction_factor
+            self.field.mean = self.friction
+            self.gain *= self.speed_factor
+            self.bias = np.concatenate(
+                [rng.normal(0, world.obs_bias[0], 2), rng.normal(0, world.obs_bias[1], n)]
+            )
 
     def com_offsets(self, masses: np.ndarray) -> np.ndarray:
         """Each link's centre-of-mass offset along it, m, for the object of these masses
@@ -315,8 +341,8 @@ class TargetWorldRobot:
     """The target world as a robot: each `start` places a new chain of the setting (masses
     pinned if given) in a world that differs from training (`TargetWorld`), or in a world
     drawn afresh from `WorldRanges` for each episode. With `lab` (a seed), the world's
-    per-episode constants are that one lab's (`Lab`); the episodes' other draws are made as
-    without it, so the same seed places the chain the same way in both."""
+    per-episode constants are that one lab's (`Lab`) on its day `day`; the episodes' other
+    draws are made as without it, so the same seed places the chain the same way in all."""
 
     def __init__(
         self,
@@ -326,6 +352,7 @@ class TargetWorldRobot:
         seed: int = 0,
         masses: tuple[float, ...] | None = None,
         lab: int | None = None,
+        day: int = 0,
     ):
         from masspush.settings import get_setting
 
@@ -343,7 +370,9 @@ class TargetWorldRobot:
         self.pinned = {} if masses is None else {"masses": list(masses)}
         if lab is not None and self.ranges is not None:
             raise ValueError("a lab is one world; it cannot be drawn from WorldRanges")
-        self.lab = None if lab is None else Lab(lab, self.world, self.physics)
+        if day and lab is None:
+            raise ValueError("a day is one lab's; pass lab too")
+        self.lab = None if lab is None else Lab(lab, self.world, self.physics, day)
         if self.lab is not None:
             self.pinned |= {"friction": self.lab.friction, "lengths": self.lab.lengths}
         self.truth: dict[str, Any] = {}

@@ -80,6 +80,11 @@ class Sim2RealConfig:
     """None: every episode draws the target world's constants afresh (a lab of its own per
     episode, the stress test); a seed: one lab's constants for all episodes and each class's
     object its own (`target_world.Lab`), as in a real lab; only with world "target"."""
+    day: int = 0
+    """Which day in the lab: 0, the day every lab figure before 2026-12-07 was measured on
+    (its governor fits and calibration runs too); another, a later day on which the table's
+    friction, the robot's speed gain and the tracker's calibration have drifted
+    (`target_world.Lab`). Only with lab."""
     governor_fit: str | None = None
     """A recording of random pushes made in this world (e.g. an earlier run's random.jsonl):
     the stationary robot's speed governor takes its slide bounds from them
@@ -157,6 +162,9 @@ class Sim2RealConfig:
             self.sorting_density()
         check_int("seed", self.seed, low=0, high=SEED_MAX)
         check_int("lab", self.lab, low=0, optional=True)
+        check_int("day", self.day, low=0, high=SEED_MAX)
+        if self.day and self.lab is None:
+            raise ValueError("day is a day in one lab: pass --lab too")
         if self.start_range is not None and not 0 <= self.start_range <= 1:
             raise ValueError(f"start_range must be in [0, 1] m, got {self.start_range!r}")
         if self.start_yaw is not None:
@@ -303,11 +311,12 @@ run's chains began at `seed` itself, and seed S + 1's chains were seed S's shift
 
 def class_robot(
     setting: Setting, c: int, seed: int = 0, world: TargetWorld | None = None,
-    lab: int | None = None, pushes: int | None = None,
+    lab: int | None = None, pushes: int | None = None, day: int = 0,
 ) -> Robot:  # fmt: skip
     """The robot that pushes the chains of class `c` (of `PAPER_CLASSES`) in `masspush
     sim2real --seed SEED`: in the target world `world` (a `TargetWorld`; `lab` one lab of
-    it), or with `world` None in the training world, there with room for `pushes` pushes.
+    it, on its day `day`), or with `world` None in the training world, there with room for
+    `pushes` pushes.
     Seeds differ between classes but not between a run's arms or experiments that use
     this: they see the same chains, frictions and biases, so comparisons are paired; other
     seeds see other chains (`RUN_SEEDS`)."""
@@ -317,7 +326,7 @@ def class_robot(
     masses = list(PAPER_CLASSES.values())[c]
     first = RUN_SEEDS * seed + CLASS_SEEDS * c
     if world is not None:
-        return TargetWorldRobot(setting, world, seed=first, masses=masses, lab=lab)
+        return TargetWorldRobot(setting, world, seed=first, masses=masses, lab=lab, day=day)
     # The classes are the paper's masses in any setting, as in the target world.
     pushes = pushes or setting.env_config().pushes
     return SimRobot(setting, seed=first, masses=masses, pushes=pushes, allow_out_of_range=True)
@@ -398,7 +407,7 @@ def _record_class(
     pushes = setting.env_config().pushes
     robot = class_robot(
         setting, c, config.seed, world if config.world == "target" else None, config.lab,
-        pushes * config.segments,
+        pushes * config.segments, config.day,
     )  # fmt: skip
     if governor is not None:
         robot.governor = governor
@@ -454,6 +463,8 @@ def record_arm(
             robot_name += f" (differences x{config.severity:g})"
         if config.lab is not None:
             robot_name += f", lab {config.lab}"
+        if config.day:
+            robot_name += f", day {config.day}"
         if config.governor_fit is not None:
             robot_name += f", speed governor fitted to {config.governor_fit}"
         if config.start_range is not None:
