@@ -22,7 +22,8 @@ objects, pushed again and again (the paper's UR10 pushed the same 3D-printed cha
 each). `Lab` is that: the table's friction and its field, the tracker's bias, the robot's
 speed gain and contact bias and the chain's lengths drawn once from a lab seed, each mass
 class's centre-of-mass offsets once per object; only the chain's pose on the table and the
-noise change between episodes.
+noise change between episodes. A lab's later day (`Lab`'s `day`) keeps its objects but not
+quite its table, robot or tracker: a day's drift, drawn once for the day.
 
 `TargetWorldRobot` is a `masspush.real.robot.Robot`: everything that runs on a robot runs in it
 (`masspush run --robot target`, `masspush sim2real`). Every number below is our own choice
