@@ -220,10 +220,10 @@ def make_robot(
 ) -> Robot:
     """A robot by backend name: stiff, kuka, ur10 (simulated), target (the sim-to-real
     target world, `masspush.real.target_world`; `lab` keeps one lab's constants, on its day
-    `day`), replay (a
-    recording), or a lab's own, `package.module:factory` (`load_lab_robot`; `masses` are
-    then only the chain's known masses, for the recording). `pushes`: the most pushes an
-    episode may get (a simulated robot's episode otherwise ends after the setting's)."""
+    `day`), replay (a recording), or a lab's own, `package.module:factory`
+    (`load_lab_robot`; `masses` are then only the chain's known masses, for the recording).
+    `pushes`: the most pushes an episode may get (a simulated robot's episode otherwise ends
+    after the setting's)."""
     if lab is not None and backend != "target":
         raise ValueError(f"a lab is one draw of the target world; backend {backend!r} has none")
     if is_lab_robot(backend):
