@@ -83,10 +83,11 @@ def main() -> None:
     print(f"| recording | episodes | pushes | {head} | first recording / this only right, p |")
     print("|---" * (4 + len(densities) + len(others)) + "|")
     reference: dict[int, dict[str, bool]] = {}  # the first recording's, by pushes
-    first_path = args.recordings[0]
+    first_seed = chains_seed(args.recordings[0])
     for path in args.recordings:
         try:
             recording = read_recording(path)
+            same_chains = first_seed is not None and chains_seed(path) == first_seed
             for pushes in args.pushes:
                 sorted_by = {
                     name: posterior_accuracy(density, recording, str(path), pushes)
@@ -108,7 +109,7 @@ def main() -> None:
                 if pushes not in reference:
                     reference[pushes] = right
                     cells.append("-")
-                elif chains_seed(path) is None or chains_seed(path) != chains_seed(first_path):
+                elif not same_chains:
                     cells.append("other chains")
                 elif shared := sorted(right.keys() & reference[pushes].keys()):
                     # the same chains (same seed and episode id): a paired comparison on them

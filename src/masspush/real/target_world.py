@@ -293,6 +293,14 @@ class FrictionField:
         return self.mean * np.clip(1.0 + self.amplitude * waves, 0.5, 1.5)
 
 
+def tracker_bias(world: TargetWorld, rng: np.random.Generator, n_links: int) -> np.ndarray:
+    """A calibration's bias on the tracked pose (x, y, then the n_links angles), drawn with
+    `world.obs_bias`'s stds."""
+    return np.concatenate(
+        [rng.normal(0, world.obs_bias[0], 2), rng.normal(0, world.obs_bias[1], n_links)]
+    )
+
+
 class Lab:
     """One lab's constants in `world`, drawn once from `seed` [ours]: what stays the same
     from one episode to the next in a real lab (see the module's docstring).
@@ -312,9 +320,7 @@ class Lab:
         self.field = FrictionField(self.friction, world, rng)
         self.lengths = rng.uniform(*physics.length_range, size=n)
         self.told_lengths = self.lengths + rng.normal(0, world.length_error, n)
-        self.bias = np.concatenate(
-            [rng.normal(0, world.obs_bias[0], 2), rng.normal(0, world.obs_bias[1], n)]
-        )
+        self.bias = tracker_bias(world, rng, n)
         self.gain = float(rng.uniform(*world.speed_gain))
         self.contact = float(rng.normal(0, world.contact_bias))
         self.com_offset = world.com_offset
@@ -326,9 +332,7 @@ class Lab:
             self.friction *= self.friction_factor
             self.field.mean = self.friction
             self.gain *= self.speed_factor
-            self.bias = np.concatenate(
-                [rng.normal(0, world.obs_bias[0], 2), rng.normal(0, world.obs_bias[1], n)]
-            )
+            self.bias = tracker_bias(world, rng, n)
 
     def com_offsets(self, masses: np.ndarray) -> np.ndarray:
         """Each link's centre-of-mass offset along it, m, for the object of these masses
@@ -399,12 +403,7 @@ class TargetWorldRobot:
                 break
         w, n = self.world, self.n_links
         self.sim.on_step = self._update_friction
-        self.bias = np.concatenate(
-            [
-                self.rng.normal(0, w.obs_bias[0], 2),
-                self.rng.normal(0, w.obs_bias[1], 1 + n - 1),
-            ]
-        )
+        self.bias = tracker_bias(w, self.rng, n)
         self.gain = self.rng.uniform(*w.speed_gain)
         self.contact = self.rng.normal(0, w.contact_bias)
         told = chain.lengths + self.rng.normal(0, w.length_error, n)
