@@ -19,7 +19,7 @@ from typing import Any
 Range = tuple[float, float]
 
 
-def _check_range(name: str, value: Range, *, low: float | None = None) -> None:
+def check_range(name: str, value: Range, *, low: float | None = None) -> None:
     """Raise ValueError unless value is a finite (lo, hi) pair with lo <= hi (and lo >= low)."""
     try:
         lo, hi = (float(v) for v in value)
@@ -241,16 +241,16 @@ class PhysicsConfig:
             raise ValueError(f"n_links must be an integer >= 2, got {self.n_links!r}")
         if self.n_links > MAX_LINKS:
             raise ValueError(f"n_links must be at most {MAX_LINKS} (supported), got {self.n_links}")
-        _check_range("mass_range", self.mass_range)
+        check_range("mass_range", self.mass_range)
         if float(self.mass_range[0]) <= 0:
             raise ValueError(f"mass_range must be positive, got {self.mass_range!r}")
-        _check_range("friction_range", self.friction_range)
+        check_range("friction_range", self.friction_range)
         if float(self.friction_range[0]) <= 0:
             raise ValueError(f"friction_range must be positive, got {self.friction_range!r}")
-        _check_range("length_range", self.length_range)
+        check_range("length_range", self.length_range)
         if float(self.length_range[0]) <= 0:
             raise ValueError(f"length_range must be positive, got {self.length_range!r}")
-        _check_range("root_yaw_range", self.root_yaw_range)
+        check_range("root_yaw_range", self.root_yaw_range)
         # Normalise ranges to float tuples so configs compare and serialise cleanly.
         for name in ("mass_range", "friction_range", "length_range", "root_yaw_range"):
             object.__setattr__(self, name, tuple(float(v) for v in getattr(self, name)))

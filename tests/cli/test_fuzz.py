@@ -72,6 +72,8 @@ CASES: dict[str, list[list[str]]] = {
                      ["--episodes", "FOREIGN"], ["--density", "MISSING"],
                      ["--density", "GARBAGE"], ["--folds", "1"], ["--steps", "0"],
                      ["--lr", "nan"], ["--anchor", "-1"], ["--frictions", "0"],
+                     ["--sort-range", "1.2,0.3"], ["--sort-range", "0,1"],
+                     ["--sort-frictions", "0"],
                      ["--out", "DIR"], ["--setting", "nope"]],
     "sim2real": [["--episodes-per-class", "0"], ["--severity", "2"], ["--world", "moon"],
                  ["--lab", "-1"], ["--segments", "0"], ["--setting", "nope"], ["--day", "2"],

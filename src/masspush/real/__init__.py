@@ -1,6 +1,7 @@
 """The real-robot path: the robot interface (`robot`) and its backends (`backends`), a session
 through a robot (`session`), the classifier fine-tuned on real episodes (`classifier`,
-`classifier_jobs`) and the particle filter's push density tuned to a lab (`density_tuning`), the
+`classifier_jobs`) and the particle filter's push density tuned to a lab (`density_tuning`)
+with its reading of the table's friction (`table_friction`), the
 sim-to-real test world (`target_world`, `transfer`) and domain
 randomisation (`randomisation`, `robot_env`), a stationary robot's speed governor fitted to a
 lab's pushes (`governor`), and the particle filter as an arm of the protocol (`filter_arm`).
@@ -26,10 +27,13 @@ EXPORTS = {
     ),
     "density_tuning": ("CalibrationWarning", "LabelledPush", "TuneConfig",
                        "check_calibration_length", "class_log_likelihoods", "class_masses",
-                       "cross_validate_tuning", "first_pushes", "friction_grid", "labelled_pushes",
-                       "push_ladder", "posterior_accuracy", "posterior_classes",
-                       "pushes_per_episode", "record_tuning", "tune_density",
-                       "tuned_classes"),
+                       "cross_validate_tuning", "first_pushes", "friction_grid",
+                       "joint_log_likelihoods", "labelled_pushes", "push_ladder",
+                       "posterior_accuracy", "posterior_classes", "pushes_per_episode",
+                       "record_tuning", "sorting_grid", "tune_density", "tuned_classes"),
+    "table_friction": ("DRIFT_LIMIT", "FrictionDriftWarning", "FrictionReading",
+                       "calibration_friction", "check_drift", "friction_lines",
+                       "friction_profiles", "pool_reading", "read_friction"),
     "target_world": ("TRAINING_KNOBS", "Lab", "TargetWorld", "TargetWorldRobot", "WorldRanges",
                      "scaled_world"),
     "transfer": ("ARMS", "FEATURE_KINDS", "FEATURE_NAMES", "Sim2RealConfig", "Sim2RealJob",

@@ -38,9 +38,18 @@ from masspush.real.density_tuning import (
     posterior_classes,
     pushes_per_episode,
     record_tuning,
+    sorting_grid,
     tune_density,
 )
 from masspush.real.robot import check_geometry, model_speed_reader
+from masspush.real.table_friction import (
+    calibration_friction,
+    check_drift,
+    friction_lines,
+    friction_profiles,
+    pool_reading,
+    read_friction,
+)
 from masspush.settings import get_setting
 
 
@@ -233,6 +242,8 @@ def classify_by_posterior(job: ClassifyJob) -> list[str]:
     except ValueError as err:
         raise ValueError(f"density: {err}") from None
     answers: list[tuple[str, str | None, str, float]] = []
+    profiles = []
+    where = f"density: {job.density}"
     # Piece by piece, as with a classifier: any size in the memory of one piece.
     for i, piece in enumerate(iter_recording(job.episodes)):
         if i == 0:
@@ -240,11 +251,17 @@ def classify_by_posterior(job: ClassifyJob) -> list[str]:
                                  density.meta["n_links"], job.allow_mismatch)  # fmt: skip
             length = pushes_per_episode(first_pushes(labelled_pushes(piece), job.pushes))
             check_calibration_length(density, length, f"density: {job.density}")
-        classes, log_post = posterior_classes(density, piece, f"density: {job.density}",
-                                              job.pushes)  # fmt: skip
+        classes, log_post = posterior_classes(density, piece, where, job.pushes)
         answers += [(e["id"], e.get("label"), classes[int(row.argmax())], float(np.exp(row.max())))
                     for e, row in zip(piece.episodes, log_post, strict=True)]  # fmt: skip
-    return answer_lines(answers)
+        profiles.append(friction_profiles(density, piece, where, job.pushes))
+    lines = answer_lines(answers)
+    stacked = np.concatenate(profiles)
+    if len(stacked):
+        reading = pool_reading(stacked, sorting_grid(density), f"episodes: {job.episodes}")
+        check_drift(reading, density, f"episodes: {job.episodes}")
+        lines += friction_lines(reading, calibration_friction(density))
+    return lines
 
 
 @dataclass(frozen=True)
@@ -341,6 +358,10 @@ def tune(job: TuneDensityJob, config: TuneConfig, progress: bool = True) -> list
     provenance = {"episodes": list(job.episodes), "from": str(path),
                   "from_digest": density.digest(), "cross_validation": scores}  # fmt: skip
     record_tuning(tuned, classes, masses, config, pushes, provenance)
+    # What a later day's sorting compares its own reading with (`check_drift`).
+    reading = read_friction(tuned, recording, f"episodes: {named}")
+    tuned.meta["tuned"]["table_friction"] = reading.as_dict()
     Path(job.out).parent.mkdir(parents=True, exist_ok=True)
     tuned.save(job.out)
-    return [*lines, *episode_counts(recording, classes), f"saved {job.out} (tuned on all)"]
+    return [*lines, *episode_counts(recording, classes), *friction_lines(reading, None),
+            f"saved {job.out} (tuned on all)"]  # fmt: skip

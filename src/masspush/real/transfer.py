@@ -41,6 +41,7 @@ from masspush.real.classifier import (
 from masspush.real.density_tuning import check_calibration_length, posterior_accuracy
 from masspush.real.filter_arm import FilterArm, check_bayes_options
 from masspush.real.governor import fitted_setting_governor
+from masspush.real.table_friction import calibration_friction, check_drift, read_friction
 from masspush.sim.simulate import REACH_FAILURES
 
 if TYPE_CHECKING:
@@ -590,6 +591,12 @@ def score_arm(config: Sim2RealConfig, arm: str, path: Path) -> dict[str, Any]:
         # No classifier: Bayes' rule over the classes the density was tuned on, with
         # episodes of other chains (`masspush tune-density`).
         scores["posterior"] = posterior_accuracy(tuned, recording, config.tuned_density)
+        reading = read_friction(tuned, recording, config.tuned_density)
+        check_drift(reading, tuned, f"tuned_density: {config.tuned_density}")
+        calibration = calibration_friction(tuned)
+        scores["table_friction"] = reading.as_dict() | (
+            {} if calibration is None else {"change": reading.change(calibration)}
+        )
     # The control: the start pose alone. Above chance only if which episodes were kept
     # depends on the class.
     scores["start_pose_control"] = start_pose_control(
@@ -624,6 +631,14 @@ def _recorded_estimates(episode: dict[str, Any], path: Path) -> np.ndarray:
             "scored on the estimates it recorded (delete the file to record it again)"
         )
     return np.asarray(episode["estimates"], float)
+
+
+def friction_words(reading: dict[str, Any]) -> str:
+    """A `table_friction` score in a few words."""
+    words = f"{reading['value']:.3f} ({reading['low']:.3f}-{reading['high']:.3f})"
+    if reading.get("change") is not None:
+        words += f", {100 * reading['change']:+.0f} % from the calibration's"
+    return words
 
 
 def run_counts(segments: int) -> list[int]:
@@ -849,6 +864,15 @@ def summary_markdown(results: dict[str, Any]) -> str:
         lines += ["", "Sorted by the class posterior of the push density tuned to the lab ("
                   f"{config.get('tuned_density')}, --tuned-density; no classifier trained on "
                   f"these episodes): {each}."]  # fmt: skip
+        read = {arm: r["table_friction"] for arm, r in results["arms"].items()
+                if "table_friction" in r}  # fmt: skip
+        if read:
+            lines.append(
+                "The table's friction as that density reads it, with a 90 % interval "
+                "(docs/real-robot.md, 'Another day in the lab'): "
+                + "; ".join(f"{arm} {friction_words(f)}" for arm, f in read.items())
+                + "."
+            )
     for kind, p in results.get("paired", {}).items():
         lines += ["", f"Paired (the same chains), {FEATURE_NAMES[kind]}: {p['only_learned']} "
                   f"episodes only the learned policy's got right, {p['only_random']} only the "
