@@ -28,7 +28,7 @@ import numpy as np
 
 from masspush.data import read_recording
 from masspush.learn import load_push_density
-from masspush.real import paired_test, posterior_accuracy
+from masspush.real import TuneConfig, paired_test, posterior_accuracy, sort_over
 
 
 def chains_seed(path: Path) -> int | None:
@@ -64,17 +64,26 @@ def main() -> None:
     parser.add_argument("--density", action="append", required=True, type=named_density,
                         help="NAME=FILE, a tuned density (repeatable; the first is compared "
                         "with each other)")  # fmt: skip
+    parser.add_argument("--widened", action="append", default=[], type=named_density,
+                        help="NAME=FILE, a tuned density sorting over the current default "
+                        "friction range (tune-density --sort-range), its weights unchanged "
+                        "(repeatable; after the --density ones)")  # fmt: skip
     parser.add_argument("--pushes", type=pushes_list, default=[2, 32],
                         help="each episode's first P pushes, P,Q,... (default: 2,32)")  # fmt: skip
     args = parser.parse_args()
     densities = {}
-    for name, path in args.density:
-        try:
-            densities[name] = load_push_density(path)
-        except (OSError, ValueError) as err:
-            parser.error(f"--density {name}={path}: {err}")
-        if not densities[name].meta.get("tuned"):
-            parser.error(f"--density {name}={path}: not a tuned density (masspush tune-density)")
+    for option, named in (("--density", args.density), ("--widened", args.widened)):
+        for name, path in named:
+            if name in densities:
+                parser.error(f"{option} {name}={path}: the name {name} is taken")
+            try:
+                densities[name] = load_push_density(path)
+            except (OSError, ValueError) as err:
+                parser.error(f"{option} {name}={path}: {err}")
+            if not densities[name].meta.get("tuned"):
+                parser.error(f"{option} {name}={path}: not a tuned density (tune-density)")
+            if option == "--widened":
+                sort_over(densities[name], TuneConfig())
     for path in args.recordings:
         if not path.is_file():
             parser.error(f"{path}: no such recording")

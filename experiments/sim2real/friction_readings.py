@@ -5,9 +5,9 @@ friction that a tuned density (`masspush tune-density`) reads from its episodes
 (`masspush.real.read_friction`), with its 90 % interval, and the change from the reading kept
 of the density's calibration run; from all episodes or the first K of each class, from each
 episode's first P pushes: what a lab needs to push to notice a drift. With `--widen`, a
-density tuned before it kept a calibration reading and a sorting range is given the current
-defaults first (the same weights, the calibration read from `--widen`'s recording). For
-docs/notebook/2026-12-07-wider-friction.md:
+density tuned before the sorting range was kept is given the current default first (the same
+weights); `--calibration REC` reads the calibration from REC instead of the density's kept
+reading (none: no change is printed). For docs/notebook/2026-12-07-wider-friction.md:
 
     python experiments/sim2real/friction_readings.py --per-class 2,all --pushes 8,32 \\
         --density results/lab-tuned-density/lab9-seed1-32push-wide.pt \\
@@ -22,7 +22,7 @@ from pathlib import Path
 
 from masspush.data import Recording, read_recording
 from masspush.learn import load_push_density
-from masspush.real import TuneConfig, calibration_friction, read_friction
+from masspush.real import TuneConfig, calibration_friction, read_friction, sort_over
 
 
 def counts(text: str) -> list[int | None]:
@@ -66,32 +66,32 @@ def main() -> None:
         default=[None],
         help="each episode's first P pushes, P,Q,... or all (default: all)",
     )
-    parser.add_argument("--widen", type=Path, default=None,
-                        help="a calibration recording: give an older tuned density the current "
-                        "sorting range and this recording's reading")  # fmt: skip
+    parser.add_argument(
+        "--widen", action="store_true", help="give an older tuned density the current sorting range"
+    )
+    parser.add_argument("--calibration", type=Path, default=None,
+                        help="the calibration recording to read the change from (default: the "
+                        "density's kept reading)")  # fmt: skip
     args = parser.parse_args()
-    for path in [*args.recordings, *([args.widen] if args.widen else [])]:
+    for path in [*args.recordings, *([args.calibration] if args.calibration else [])]:
         if not path.is_file():
             parser.error(f"{path}: no such recording")
     try:
         density = load_push_density(args.density)
     except (OSError, ValueError) as err:
         parser.error(f"--density {args.density}: {err}")
-    tuned = density.meta.get("tuned")
-    if not tuned:
+    if not density.meta.get("tuned"):
         parser.error(f"--density {args.density}: not a tuned density (masspush tune-density)")
     try:
         if args.widen:
-            defaults = TuneConfig()
-            tuned["config"] |= {"sort_range": list(defaults.sort_range),
-                                "sort_frictions": defaults.sort_frictions}  # fmt: skip
-            calibration = read_friction(density, read_recording(args.widen), str(args.widen))
-            tuned["table_friction"] = calibration.as_dict()
-        reference = calibration_friction(density)
-        if reference is None:
-            parser.error(f"--density {args.density}: keeps no calibration reading; give --widen")
+            sort_over(density, TuneConfig())
         recordings = {path: read_recording(path) for path in args.recordings}
-        print(f"calibration's reading: {reference['value']:.3f}")
+        reference = calibration_friction(density)
+        if args.calibration:
+            calibration = read_recording(args.calibration)
+            reference = read_friction(density, calibration, str(args.calibration)).as_dict()
+        if reference is not None:
+            print(f"calibration's reading: {reference['value']:.3f}")
         print("| recording | episodes | pushes | reading (90 % interval) | change |")
         print("|---|---|---|---|---|")
         for path, recording in recordings.items():
@@ -100,9 +100,9 @@ def main() -> None:
                 for p in args.pushes:
                     r = read_friction(density, part, str(path), p)
                     edge = f" at the {r.edge} end" if r.edge else ""
-                    change = 100 * r.change(reference)
+                    change = "-" if reference is None else f"{100 * r.change(reference):+.0f} %"
                     print(f"| {path} | {r.episodes} | {p or 'all'} | {r.value:.3f} "
-                          f"({r.low:.3f}-{r.high:.3f}){edge} | {change:+.0f} % |")  # fmt: skip
+                          f"({r.low:.3f}-{r.high:.3f}){edge} | {change} |")  # fmt: skip
     except ValueError as err:
         sys.exit(f"error: {str(err).splitlines()[0]}")
 

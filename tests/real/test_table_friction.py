@@ -10,7 +10,13 @@ from masspush.data.recording import Recording, write_recording
 from masspush.learn.push_density import PushDensity, load_push_density
 from masspush.models import shipped_file
 from masspush.real.classifier_jobs import ClassifyJob, classify_by_posterior
-from masspush.real.density_tuning import TuneConfig, labelled_pushes, record_tuning, sorting_grid
+from masspush.real.density_tuning import (
+    TuneConfig,
+    labelled_pushes,
+    record_tuning,
+    sort_over,
+    sorting_grid,
+)
 from masspush.real.table_friction import (
     DRIFT_LIMIT,
     FrictionDriftWarning,
@@ -148,8 +154,13 @@ def test_sorting_reads_the_sort_range_and_a_density_tuned_before_it_its_tuning_g
     kept = tuned.meta["tuned"]["config"]
     before = {k: v for k, v in kept.items() if k not in ("sort_range", "sort_frictions")}
     old = {**tuned.meta["tuned"], "config": before}
-    grid = sorting_grid(SimpleNamespace(meta={**tuned.meta, "tuned": old}))
+    older = SimpleNamespace(meta={**tuned.meta, "tuned": old})
+    grid = sorting_grid(older)
     assert len(grid) == 8 and 0.5 < grid[0] < grid[-1] < 1.0
+    sort_over(
+        older, TuneConfig(sort_range=(0.2, 0.8), sort_frictions=5)
+    )  # the weights as they were
+    assert sorting_grid(older) == pytest.approx([0.3, 0.4, 0.5, 0.6, 0.7])
 
 
 @pytest.mark.parametrize("bad", [(0.5, 0.3), (0.0, 1.0), (0.3, float("nan"))])

@@ -250,7 +250,7 @@ def classify_by_posterior(job: ClassifyJob) -> list[str]:
             check_recording_fits(piece, job.episodes, density.meta.get("setting"),
                                  density.meta["n_links"], job.allow_mismatch)  # fmt: skip
             length = pushes_per_episode(first_pushes(labelled_pushes(piece), job.pushes))
-            check_calibration_length(density, length, f"density: {job.density}")
+            check_calibration_length(density, length, where)
         classes, log_post = posterior_classes(density, piece, where, job.pushes)
         answers += [(e["id"], e.get("label"), classes[int(row.argmax())], float(np.exp(row.max())))
                     for e, row in zip(piece.episodes, log_post, strict=True)]  # fmt: skip

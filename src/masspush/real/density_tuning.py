@@ -356,6 +356,14 @@ def record_tuning(
     }
 
 
+def sort_over(density: PushDensity, config: TuneConfig) -> None:
+    """Have the tuned `density` sort over `config`'s frictions from now on (`sort_range`,
+    `sort_frictions`), its weights unchanged: a density tuned before they were kept sorts
+    over its tuning grid (`sorting_grid`)."""
+    density.meta["tuned"]["config"] |= {"sort_range": list(config.sort_range),
+                                        "sort_frictions": config.sort_frictions}  # fmt: skip
+
+
 def tuned_classes(density: PushDensity, where: str) -> tuple[list[str], np.ndarray]:
     """The class names and masses (C, n) a tuned density was tuned on."""
     tuned = density.meta.get("tuned")
