@@ -7,7 +7,7 @@ recording's episodes (each episode's classes marginalised, equal priors, so no l
 needed), peak at the friction the lab's table shows on that recording's day. It is the
 density's reading, not a measured coefficient: a lab whose table the density reads at 0.54
 may measure 0.6. Read on the calibration recording and again on a later day's, the ratio
-tracks the table's drift: lab 9's days read -7, -11, -19 and +11 % where its friction had
+tracks the table's drift: lab 9's days read -9, -11, -20 and +9 % where its friction had
 moved -7, -12, -22 and +14 % (docs/notebook/2026-12-07-wider-friction.md). A calibration held
 within 15 % in that lab; beyond it the reading warns (`FrictionDriftWarning`) and the lab
 recalibrates.
