@@ -77,7 +77,7 @@ class TuneConfig:
     edge, or one that drifted there since the calibration, is still read. Lab 9, its table
     at 0.54 as the density reads it, sorted 90.7 % of 75 chains on a day its table was 22 %
     more slippery, against 85.3 % over the density's range, and as well on four other days;
-    tuning over this range instead sorted random pushes 3-7 points worse
+    tuning over this range instead sorted random pushes 1-7 points worse
     (docs/notebook/2026-12-07-wider-friction.md)."""
     sort_frictions: int = 17
     """How many frictions inside `sort_range`: every 0.05 from 0.35 to 1.15."""
@@ -377,8 +377,8 @@ def posterior_classes(
     density: PushDensity, recording: Recording, where: str, pushes: int | None = None
 ) -> tuple[list[str], np.ndarray]:
     """The tuned density's classes and each episode's class log-posterior (E, C) from its
-    first `pushes` pushes (all by default), equal priors, friction marginalised over the
-    grid it was tuned with."""
+    first `pushes` pushes (all by default), equal priors, friction marginalised over its
+    `sorting_grid`."""
     classes, masses = tuned_classes(density, where)
     log_lik = class_log_likelihoods(density, first_pushes(labelled_pushes(recording), pushes),
                                     masses, sorting_grid(density))  # fmt: skip
