@@ -32,12 +32,13 @@ from masspush.real.density_tuning import (
     TuneConfig,
     check_calibration_length,
     class_masses,
+    class_posterior,
     cross_validate_tuning,
     first_pushes,
     labelled_pushes,
-    posterior_classes,
     pushes_per_episode,
     record_tuning,
+    sorting_evidence,
     sorting_grid,
     tune_density,
 )
@@ -251,10 +252,12 @@ def classify_by_posterior(job: ClassifyJob) -> list[str]:
                                  density.meta["n_links"], job.allow_mismatch)  # fmt: skip
             length = pushes_per_episode(first_pushes(labelled_pushes(piece), job.pushes))
             check_calibration_length(density, length, where)
-        classes, log_post = posterior_classes(density, piece, where, job.pushes)
+        # One reading of the pushes for both the classes and the table's friction.
+        evidence = sorting_evidence(density, piece, where, job.pushes)
+        classes, log_post = evidence.classes, class_posterior(evidence.joint)
         answers += [(e["id"], e.get("label"), classes[int(row.argmax())], float(np.exp(row.max())))
                     for e, row in zip(piece.episodes, log_post, strict=True)]  # fmt: skip
-        profiles.append(friction_profiles(density, piece, where, job.pushes))
+        profiles.append(friction_profiles(evidence))
     lines = answer_lines(answers)
     stacked = np.concatenate(profiles)
     if len(stacked):

@@ -373,16 +373,47 @@ def tuned_classes(density: PushDensity, where: str) -> tuple[list[str], np.ndarr
     return classes, np.array([tuned["classes"][c] for c in classes], float)
 
 
+class SortingEvidence(NamedTuple):
+    """What a tuned density makes of a recording's pushes, read once for both the class
+    posterior (`class_posterior`) and the table's friction
+    (`masspush.real.table_friction.friction_profiles`)."""
+
+    classes: list[str]
+    joint: np.ndarray
+    """(E, C, F) each episode's log-likelihood under each class at each friction of `grid`."""
+    pushed: np.ndarray
+    """(E,) whether the episode has a push to read."""
+    grid: np.ndarray
+    """The density's `sorting_grid`."""
+
+
+def sorting_evidence(
+    density: PushDensity, recording: Recording, where: str, pushes: int | None = None
+) -> SortingEvidence:
+    """The tuned density's likelihoods of each episode's first `pushes` pushes (all by
+    default) under its classes at the frictions of its `sorting_grid`."""
+    classes, masses = tuned_classes(density, where)
+    read = first_pushes(labelled_pushes(recording), pushes)
+    grid = sorting_grid(density)
+    return SortingEvidence(classes, joint_log_likelihoods(density, read, masses, grid),
+                           np.array([len(p.actions) > 0 for p in read], bool), grid)  # fmt: skip
+
+
+def class_posterior(joint: np.ndarray) -> np.ndarray:
+    """(E, C) each episode's class log-posterior from its `joint` log-likelihoods (E, C, F):
+    equal priors, the friction marginalised (uniform)."""
+    log_lik = np.logaddexp.reduce(joint, axis=2)
+    return log_lik - np.logaddexp.reduce(log_lik, axis=1, keepdims=True)
+
+
 def posterior_classes(
     density: PushDensity, recording: Recording, where: str, pushes: int | None = None
 ) -> tuple[list[str], np.ndarray]:
     """The tuned density's classes and each episode's class log-posterior (E, C) from its
     first `pushes` pushes (all by default), equal priors, friction marginalised over its
     `sorting_grid`."""
-    classes, masses = tuned_classes(density, where)
-    log_lik = class_log_likelihoods(density, first_pushes(labelled_pushes(recording), pushes),
-                                    masses, sorting_grid(density))  # fmt: skip
-    return classes, log_lik - np.logaddexp.reduce(log_lik, axis=1, keepdims=True)
+    evidence = sorting_evidence(density, recording, where, pushes)
+    return evidence.classes, class_posterior(evidence.joint)
 
 
 def posterior_accuracy(
@@ -391,7 +422,14 @@ def posterior_accuracy(
     """How well the tuned density's class posterior sorts a labelled recording (from each
     episode's first `pushes` pushes): accuracy, confusion (rows: truth, in the density's
     class order), each episode's class."""
-    classes, log_post = posterior_classes(density, recording, where, pushes)
+    return score_posterior(*posterior_classes(density, recording, where, pushes), recording,
+                           where)  # fmt: skip
+
+
+def score_posterior(
+    classes: list[str], log_post: np.ndarray, recording: Recording, where: str
+) -> dict[str, Any]:
+    """`posterior_accuracy` of a labelled recording's class log-posteriors (E, C)."""
     unknown = sorted({str(label) for label in recording.labels} - set(classes))
     if unknown:
         raise ValueError(f"{where}: tuned for classes {classes}, not {unknown}")

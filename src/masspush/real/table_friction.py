@@ -22,13 +22,7 @@ import numpy as np
 
 from masspush.data.recording import Recording
 from masspush.learn.push_density import PushDensity
-from masspush.real.density_tuning import (
-    first_pushes,
-    joint_log_likelihoods,
-    labelled_pushes,
-    sorting_grid,
-    tuned_classes,
-)
+from masspush.real.density_tuning import SortingEvidence, sorting_evidence
 
 DRIFT_LIMIT = 0.15
 """Relative change of the table friction's reading from the calibration's beyond which a
@@ -79,18 +73,11 @@ def peak(profile: np.ndarray, grid: np.ndarray) -> float:
     return float(grid[k] + shift * (grid[1] - grid[0]))
 
 
-def friction_profiles(
-    density: PushDensity, recording: Recording, where: str, pushes: int | None = None
-) -> np.ndarray:
-    """(E, F) each episode's log-likelihood of its first `pushes` pushes (all by default) at
-    each friction of the tuned `density`'s `sorting_grid`, its class unknown (the classes
-    marginalised, equal priors); episodes without a push left out."""
-    _, masses = tuned_classes(density, where)
-    read = [p for p in first_pushes(labelled_pushes(recording), pushes) if len(p.actions)]
-    if not read:
-        return np.zeros((0, len(sorting_grid(density))))
-    joint = joint_log_likelihoods(density, read, masses, sorting_grid(density))
-    return np.logaddexp.reduce(joint, axis=1)
+def friction_profiles(evidence: SortingEvidence) -> np.ndarray:
+    """(E, F) each episode's log-likelihood at each friction of the evidence's grid, its
+    class unknown (the classes marginalised, equal priors); episodes without a push left
+    out."""
+    return np.logaddexp.reduce(evidence.joint[evidence.pushed], axis=1)
 
 
 def pool_reading(
@@ -112,8 +99,8 @@ def read_friction(
 ) -> FrictionReading:
     """The table friction that the tuned `density` reads from a recording's episodes (their
     first `pushes` pushes; all by default)."""
-    profiles = friction_profiles(density, recording, where, pushes)
-    return pool_reading(profiles, sorting_grid(density), where)
+    evidence = sorting_evidence(density, recording, where, pushes)
+    return pool_reading(friction_profiles(evidence), evidence.grid, where)
 
 
 def calibration_friction(density: PushDensity) -> dict[str, Any] | None:

@@ -38,10 +38,21 @@ from masspush.real.classifier import (
     predictor_features,
     start_pose_control,
 )
-from masspush.real.density_tuning import check_calibration_length, posterior_accuracy
+from masspush.real.density_tuning import (
+    check_calibration_length,
+    class_posterior,
+    posterior_accuracy,
+    score_posterior,
+    sorting_evidence,
+)
 from masspush.real.filter_arm import FilterArm, check_bayes_options
 from masspush.real.governor import fitted_setting_governor
-from masspush.real.table_friction import calibration_friction, check_drift, read_friction
+from masspush.real.table_friction import (
+    calibration_friction,
+    check_drift,
+    friction_profiles,
+    pool_reading,
+)
 from masspush.sim.simulate import REACH_FAILURES
 
 if TYPE_CHECKING:
@@ -590,8 +601,11 @@ def score_arm(config: Sim2RealConfig, arm: str, path: Path) -> dict[str, Any]:
     if tuned is not None:
         # No classifier: Bayes' rule over the classes the density was tuned on, with
         # episodes of other chains (`masspush tune-density`).
-        scores["posterior"] = posterior_accuracy(tuned, recording, config.tuned_density)
-        reading = read_friction(tuned, recording, config.tuned_density)
+        # All pushes read once for both the classes and the table's friction.
+        evidence = sorting_evidence(tuned, recording, config.tuned_density)
+        scores["posterior"] = score_posterior(evidence.classes, class_posterior(evidence.joint),
+                                              recording, config.tuned_density)  # fmt: skip
+        reading = pool_reading(friction_profiles(evidence), evidence.grid, config.tuned_density)
         check_drift(reading, tuned, f"tuned_density: {config.tuned_density}")
         calibration = calibration_friction(tuned)
         scores["table_friction"] = reading.as_dict() | (
