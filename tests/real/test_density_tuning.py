@@ -213,6 +213,9 @@ def test_tune_density_and_classify_commands(lab, tmp_path, capsys):
     assert main([*args, "--frictions", "100000000", "--out", str(tmp_path / "z.pt")]) == 2
     assert "frictions: batch_size" in capsys.readouterr().err
     assert not (tmp_path / "z.pt").exists()
+    assert main([*args, "--sort-frictions", "100000000", "--out", str(tmp_path / "z.pt")]) == 2
+    assert "sort_frictions: batch_size" in capsys.readouterr().err
+    assert not (tmp_path / "z.pt").exists()
     assert main([*args, "--anchor", "-1"]) == 2
     assert "anchor" in capsys.readouterr().err
     unlabelled = read_recording(recording_file)

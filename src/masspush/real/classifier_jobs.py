@@ -332,11 +332,14 @@ def tune(job: TuneDensityJob, config: TuneConfig, progress: bool = True) -> list
             raise ValueError(f"folds: {named}: {err} ({', '.join(classes)})") from None
     pushes = labelled_pushes(recording)
     total = sum(len(p.actions) for p in pushes)
-    try:  # every push at every friction is in one step: refused before it runs out of memory
-        what = f"{total:,} labelled pushes at {config.frictions:,} frictions"
-        check_batch_memory(total, config.frictions, DENSITY_BYTES_PER_PUSH, what)
-    except ValueError as err:
-        raise ValueError(f"frictions: {err}") from None
+    # Every push at every friction is in one step of the tuning, and in one reading of the
+    # sorting: refused before it runs out of memory.
+    for name, count in (("frictions", config.frictions), ("sort_frictions", config.sort_frictions)):
+        try:
+            what = f"{total:,} labelled pushes at {count:,} frictions"
+            check_batch_memory(total, count, DENSITY_BYTES_PER_PUSH, what)
+        except ValueError as err:
+            raise ValueError(f"{name}: {err}") from None
     per_episode = pushes_per_episode(pushes)
     lines = [
         f"{len(labels)} episodes, {len(classes)} classes, {total} pushes ({per_episode:.1f} "
