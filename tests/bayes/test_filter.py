@@ -614,3 +614,32 @@ def test_a_density_s_filter_guesses_only_the_frictions_its_data_held():
     for _ in range(3):  # resampled and moved: still the one friction
         filt.update(start, np.array([0.5, 0.5]), observed)
         np.testing.assert_allclose(filt.friction, 0.7)
+
+
+def test_a_named_friction_range_widens_the_particles_beyond_the_density_s():
+    env = EnvConfig(physics=SETTING.physics(), pusher="stiff")
+    density = ShareDensity()
+    density.meta = {"friction_seen": [0.5, 1.0]}
+    config = BayesConfig(likelihood="learned", density="any", particles=500, move_sweeps=1,
+                         lookahead_particles=16, candidates=2)  # fmt: skip
+    plain = ParticleFilter(env, config, seed=0, density=density)
+    wide = ParticleFilter(env, replace(config, friction_range=(0.3, 1.2)), seed=0,
+                          density=density)  # fmt: skip
+    assert plain.friction_range == (0.5, 1.0)
+    assert "friction_range" not in plain.settings()  # off: caches made before stay valid
+    assert wide.settings()["friction_range"] == (0.3, 1.2)
+    start = np.array([0.0, 0.0, 0.4, 0.1])
+    for filt in (plain, wide):
+        filt.reset(np.array([0.12, 0.12]), episode=1)
+        filt.update(start, np.array([0.5, 0.5]), density._mean(start, np.array([[0.3, 0.7]]))[0])
+    assert plain.friction.min() >= 0.5 and plain.friction.max() <= 1.0
+    assert wide.friction.min() >= 0.3 and wide.friction.max() <= 1.2
+    assert wide.friction.min() < 0.5 or wide.friction.max() > 1.0
+    assert bayes_overrides(["friction_range=0.3,1.2"]) == {"friction_range": (0.3, 1.2)}
+    assert bayes_overrides(["friction_range=none"]) == {"friction_range": None}
+    for bad in ("friction_range=0.3", "friction_range=a,b"):
+        with pytest.raises(ValueError, match="LOW,HIGH"):
+            bayes_overrides([bad])
+    for bad in ((1.2, 0.3), (0.0, 1.0), (0.3, float("nan"))):
+        with pytest.raises(ValueError, match="friction_range"):
+            BayesConfig(friction_range=bad)

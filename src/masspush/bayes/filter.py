@@ -181,6 +181,13 @@ class BayesConfig:
     runs would cost (2 points at 2 pushes, docs/notebook/2026-12-05-headroom.md), while
     the losses it avoids come over the later runs [ours; docs/notebook/
     2026-12-06-late-reach-weight.md]."""
+    friction_range: tuple[float, float] | None = None
+    """The table frictions the particles may guess, (low, high); None: the setting's within
+    those a learned likelihood was trained on (`friction_prior`). A lab whose table reads
+    outside them (`masspush classify --density` prints the reading) may widen them: a
+    learned likelihood then extrapolates beyond its training frictions, as the tuned
+    density's sorting does (`TuneConfig.sort_range`) [ours; docs/notebook/
+    2026-12-07-lab-1.md]."""
     tail_dof: float | None = 4.0
     """Degrees of freedom of a Student-t likelihood per component; None: Gaussian. Heavy
     tails keep the few outcomes the model reproduces badly (an arm's contact is not the
@@ -217,6 +224,12 @@ class BayesConfig:
             )
         if self.motion_slack is not None and self.motion_slack < 0:
             raise ValueError(f"motion_slack must be >= 0, got {self.motion_slack}")
+        if self.friction_range is not None:
+            lo, hi = (float(v) for v in self.friction_range)
+            if not 0 < lo < hi < float("inf"):
+                raise ValueError(
+                    f"friction_range must be 0 < low < high, got {self.friction_range}"
+                )
 
 
 @dataclass(frozen=True)
@@ -267,15 +280,19 @@ class ParticleFilter:
             self.density = density
         elif pusher_kind(env_config.pusher).arm:
             self.arm = ArmSimulator(self.physics, env_config.pusher, self.config.nthread)
-        self.friction_range = friction_prior(self.density, self.physics.friction_range)
-        """The prior's frictions: the setting's, within those a learned likelihood knows."""
+        self.friction_range = self.config.friction_range or friction_prior(
+            self.density, self.physics.friction_range
+        )
+        """The prior's frictions: the setting's, within those a learned likelihood knows,
+        unless `BayesConfig.friction_range` names them."""
 
     def settings(self) -> dict:
         """The configuration as run: `BayesConfig` with its defaults resolved for this chain,
         the simulated pusher's speed (the arm's surrogate where an arm pushes) and the
         algorithm's `FILTER_REVISION`."""
         config = asdict(self.config)
-        for name in ("reach_weight", "reach_from"):  # off pushes as before: caches stay valid
+        # Options off push as before: caches stay valid.
+        for name in ("reach_weight", "reach_from", "friction_range"):
             if not config[name]:
                 del config[name]
         return {
@@ -916,6 +933,9 @@ def bayes_overrides(pairs: list[str] | tuple[str, ...] | None) -> dict | None:
         key, sep, text = pair.partition("=")
         if not sep or key not in kinds:
             raise ValueError(f"--bayes wants KEY=VALUE, KEY one of {sorted(kinds)}; got {pair!r}")
+        if kinds[key].startswith("tuple"):  # a range, LOW,HIGH
+            options[key] = _range_override(key, text)
+            continue
         if kinds[key].startswith("str"):  # text, or text or none (density)
             optional = "None" in kinds[key]
             options[key] = None if optional and text.lower() == "none" else text
@@ -927,3 +947,14 @@ def bayes_overrides(pairs: list[str] | tuple[str, ...] | None) -> dict | None:
         integer = kinds[key].startswith("int") and value is not None
         options[key] = int(value) if integer else value
     return options
+
+
+def _range_override(key: str, text: str) -> tuple[float, float] | None:
+    """`--bayes KEY=LOW,HIGH` (or none) as a pair of numbers."""
+    if text.lower() == "none":
+        return None
+    try:
+        low, high = (float(v) for v in text.split(","))
+    except ValueError:
+        raise ValueError(f"--bayes {key} wants LOW,HIGH or none, got {text!r}") from None
+    return low, high

@@ -164,5 +164,5 @@ def add_bayes_option(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--bayes", action="append", metavar="KEY=VALUE", default=None,
         help="change a BayesConfig field of a particle-filter arm (repeatable), "
-        "e.g. --bayes likelihood_power=0.5",
+        "e.g. --bayes likelihood_power=0.5; a range as LOW,HIGH: --bayes friction_range=0.3,1.2",
     )  # fmt: skip
