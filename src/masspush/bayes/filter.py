@@ -49,7 +49,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
 import numpy as np
 
 from masspush.bayes.arm_scenes import ArmSimulator
-from masspush.config import EnvConfig
+from masspush.config import EnvConfig, check_range
 from masspush.sim.batch import ChainBatch
 from masspush.sim.chain import ChainParams, wrap_angle
 from masspush.sim.pushers import IDEAL_PUSHER, pusher_kind
@@ -225,8 +225,10 @@ class BayesConfig:
         if self.motion_slack is not None and self.motion_slack < 0:
             raise ValueError(f"motion_slack must be >= 0, got {self.motion_slack}")
         if self.friction_range is not None:
-            lo, hi = (float(v) for v in self.friction_range)
-            if not 0 < lo < hi < float("inf"):
+            # a finite (low, high) pair as every range, and then a friction's own bounds
+            check_range("friction_range", self.friction_range)
+            lo, hi = self.friction_range
+            if not 0 < lo < hi:
                 raise ValueError(
                     f"friction_range must be 0 < low < high, got {self.friction_range}"
                 )
