@@ -36,24 +36,10 @@ from masspush.real import (
     episode_log_probs,
     fit_classifier,
     labelled,
+    out_of_fold_log_probs,
     paired_test,
     posterior_classes,
-    stratified_folds,
 )
-
-
-def classifier_log_probs(
-    estimates: np.ndarray, labels: np.ndarray, n_classes: int, config: ClassifierConfig
-) -> np.ndarray:
-    """Each episode's out-of-fold class log-probabilities (E, C) from the log of its
-    estimate, folds as `cross_validate`'s."""
-    features = np.log(estimates).astype(np.float32)
-    out = np.zeros((len(labels), n_classes))
-    for test in stratified_folds(labels, config.folds, config.seed):
-        train = np.setdiff1d(np.arange(len(labels)), test)
-        model = fit_classifier(features[train], labels[train], n_classes, config)
-        out[test] = episode_log_probs(model, features[test], np.arange(len(test)), len(test))
-    return out
 
 
 def calibrated_log_probs(
@@ -136,7 +122,9 @@ def main() -> None:
                 log_post = log_post[:, [order.index(c) for c in classes]]
                 estimates = estimates_after(recording, pushes, str(path))
                 if calibration is None:
-                    log_probs = classifier_log_probs(estimates, labels, len(classes), config)
+                    log_probs = out_of_fold_log_probs(
+                        np.log(estimates).astype(np.float32), labels, len(classes), config
+                    )
                 else:
                     log_probs = calibrated_log_probs(
                         estimates_after(calibration, pushes, str(calibration_path)),

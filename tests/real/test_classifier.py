@@ -15,6 +15,7 @@ from masspush.real.classifier import (
     first_pushes,
     labelled,
     load_classifier,
+    out_of_fold_log_probs,
     predictor_features,
     stratified_folds,
 )
@@ -96,6 +97,28 @@ def test_folds_are_stratified_and_too_few_episodes_are_refused():
         cross_validate(np.zeros((6, 4)), np.array([0, 0, 0, 1, 1, 1]), 2, ClassifierConfig())
     with pytest.raises(ValueError, match="folds"):
         ClassifierConfig(folds=1)
+
+
+def test_out_of_fold_log_probs_are_cross_validates_guesses():
+    """Separable classes: every episode's log-probabilities come from a classifier that
+    never saw it, sum to one, and give cross_validate's predictions; an episode's rows
+    (owner) are scored together."""
+    rng = np.random.default_rng(0)
+    labels = np.repeat([0, 1, 2], 10)
+    features = (labels[:, None] * 3.0 + rng.normal(0, 0.3, (30, 2))).astype(np.float32)
+    config = ClassifierConfig(folds=5, epochs=200)
+    log_probs = out_of_fold_log_probs(features, labels, 3, config)
+    assert log_probs.shape == (30, 3)
+    np.testing.assert_allclose(np.exp(log_probs).sum(1), 1.0, rtol=1e-5)
+    predicted = cross_validate(features, labels, 3, config)["predicted"]
+    np.testing.assert_array_equal(log_probs.argmax(1), predicted)
+    assert np.mean(log_probs.argmax(1) == labels) > 0.9
+    # Two rows per episode: the episode's log-probabilities are its rows' together.
+    rows, owner = np.repeat(features, 2, axis=0), np.repeat(np.arange(30), 2)
+    paired = out_of_fold_log_probs(rows, labels, 3, config, owner)
+    assert paired.shape == (30, 3) and np.mean(paired.argmax(1) == labels) > 0.9
+    with pytest.raises(ValueError, match="rows of features but"):
+        out_of_fold_log_probs(rows, labels, 3, config, owner[:-1])
 
 
 def segmented_recording(path, segments: int = 3, episodes: int = 4):

@@ -19,8 +19,9 @@ EXPORTS = {
                  "make_robot"),
     "session": ("SessionConfig", "run_session"),
     "classifier": ("PAPER_CLASSES", "ClassifierConfig", "classifier_inputs", "cross_validate",
-                 "episode_log_probs", "fit_classifier", "labelled", "predictor_features",
-                 "start_pose_control", "start_pose_features", "stratified_folds"),
+                   "episode_log_probs", "fit_classifier", "labelled", "out_of_fold_log_probs",
+                   "predictor_features", "start_pose_control", "start_pose_features",
+                   "stratified_folds"),
     "classifier_jobs": (
         "ClassifyJob", "FinetuneJob", "TuneDensityJob", "check_recording_fits", "classify",
         "classify_by_posterior", "finetune", "read_with_predictor", "tune",

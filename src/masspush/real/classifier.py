@@ -303,6 +303,29 @@ def fold_counts(labels: np.ndarray, n_classes: int, folds: int) -> np.ndarray:
     return counts
 
 
+def out_of_fold_log_probs(
+    features: np.ndarray,
+    labels: np.ndarray,
+    n_classes: int,
+    config: ClassifierConfig,
+    owner: np.ndarray | None = None,
+) -> np.ndarray:
+    """Each episode's class log-probabilities (E, C) from the classifier trained on the
+    other folds (stratified, `config.folds`). `labels` has one entry per episode; `features`
+    one row per episode, or with `owner` (the episode of each row, from `classifier_inputs`)
+    any number: an episode's rows are all trained on or all tested."""
+    owner = np.arange(len(labels)) if owner is None else np.asarray(owner)
+    if len(owner) != len(features):
+        raise ValueError(f"{len(features)} rows of features but {len(owner)} owners")
+    fold_counts(labels, n_classes, config.folds)
+    out = np.zeros((len(labels), n_classes))
+    for test in stratified_folds(labels, config.folds, config.seed):
+        train = ~np.isin(owner, test)
+        model = fit_classifier(features[train], labels[owner[train]], n_classes, config)
+        out[test] = episode_log_probs(model, features[~train], owner[~train], len(labels))[test]
+    return out
+
+
 def cross_validate(
     features: np.ndarray,
     labels: np.ndarray,
@@ -311,27 +334,18 @@ def cross_validate(
     owner: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """Stratified k-fold accuracy over episodes, the confusion matrix (rows: truth, columns:
-    predicted) and each episode's out-of-fold prediction. `labels` has one entry per episode;
-    `features` one row per episode, or with `owner` (the episode of each row, from
-    `classifier_inputs`) any number: an episode's rows are all trained on or all tested."""
-    owner = np.arange(len(labels)) if owner is None else np.asarray(owner)
-    if len(owner) != len(features):
-        raise ValueError(f"{len(features)} rows of features but {len(owner)} owners")
-    counts = fold_counts(labels, n_classes, config.folds)
+    predicted) and each episode's out-of-fold prediction (`out_of_fold_log_probs`'s
+    arguments)."""
+    predicted = out_of_fold_log_probs(features, labels, n_classes, config, owner).argmax(1)
     confusion = np.zeros((n_classes, n_classes), np.int64)
-    per_fold = []
-    predicted = np.zeros(len(labels), np.int64)
-    for test in stratified_folds(labels, config.folds, config.seed):
-        train = ~np.isin(owner, test)
-        model = fit_classifier(features[train], labels[owner[train]], n_classes, config)
-        log_probs = episode_log_probs(model, features[~train], owner[~train], len(labels))
-        guess = log_probs[test].argmax(1)
-        np.add.at(confusion, (labels[test], guess), 1)
-        predicted[test] = guess
-        per_fold.append(float(np.mean(guess == labels[test])))
+    np.add.at(confusion, (labels, predicted), 1)
+    counts = np.bincount(labels, minlength=n_classes)
     return {
         "accuracy": float(np.trace(confusion) / confusion.sum()),
-        "per_fold": per_fold,
+        "per_fold": [
+            float(np.mean(predicted[test] == labels[test]))
+            for test in stratified_folds(labels, config.folds, config.seed)
+        ],
         "confusion": confusion.tolist(),
         "predicted": predicted.tolist(),
         "chance": float(counts.max() / counts.sum()),
