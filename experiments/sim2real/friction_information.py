@@ -24,14 +24,13 @@ separation with the friction allowance was larger at the first friction than at 
 from __future__ import annotations
 
 import argparse
-import math
 from dataclasses import replace
 
 import numpy as np
 from tqdm import tqdm
 
 from masspush.config import EnvConfig
-from masspush.real import PAPER_CLASSES
+from masspush.real import PAPER_CLASSES, sign_test
 from masspush.settings import get_setting
 from masspush.sim import ChainSim, sample_chain, wrap_angle
 
@@ -63,15 +62,6 @@ def jittered(chain, action: np.ndarray, rng: np.random.Generator, env: EnvConfig
     pose += rng.normal(0, env.obs_noise, pose.shape)
     shaken = replace(chain, root_pose=tuple(pose[:3]), joint_angles=tuple(pose[3:]))
     return shaken, np.clip(action + rng.normal(0, env.action_noise, 2), -1, 1)
-
-
-def sign_test(wins: int, losses: int) -> float:
-    """Exact two-sided sign test p-value."""
-    n = wins + losses
-    if n == 0:
-        return 1.0
-    tail = sum(math.comb(n, k) for k in range(min(wins, losses) + 1)) / 2**n
-    return min(1.0, 2 * tail)
 
 
 def main() -> None:
@@ -135,10 +125,10 @@ def main() -> None:
                 shaken.append(rest_pose(physics, seen, PAPER_CLASSES[first], friction, pushed))
             if a is None or any(o is None for o in [*others.values(), *shaken]):
                 continue
-            spread = float(np.sqrt(np.mean([distance(j, a) ** 2 for j in shaken])))
-            scatter.append(spread)
-            same.append(distance(a, others[1.0]) / spread)
-            nearest.append(min(distance(a, o) for o in others.values()) / spread)
+            scale = float(np.sqrt(np.mean([distance(j, a) ** 2 for j in shaken])))
+            scatter.append(scale)
+            same.append(distance(a, others[1.0]) / scale)
+            nearest.append(min(distance(a, o) for o in others.values()) / scale)
             per_push[friction, first][i] = nearest[-1]
             moved.append(float(np.linalg.norm(a[:2] - np.asarray(chain.root_pose[:2]))))
         if not same:

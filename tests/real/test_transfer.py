@@ -20,6 +20,7 @@ from masspush.real.transfer import (
     read_summary,
     run_counts,
     run_sim2real,
+    sign_test,
     summary_markdown,
 )
 
@@ -258,6 +259,10 @@ def test_paired_test_is_the_exact_mcnemar_test():
     # 3 against 1: two-sided tail 2 * (1 + 4) / 16.
     mixed = paired_test(truth[:4], np.array([0, 0, 0, 1]), np.array([1, 1, 1, 0]))
     assert mixed["p_value"] == pytest.approx(10 / 16)
+    # The sign test under it, on counts of wins and losses.
+    assert sign_test(3, 1) == pytest.approx(10 / 16) == sign_test(1, 3)
+    assert sign_test(8, 0) == pytest.approx(2 / 2**8)
+    assert sign_test(0, 0) == 1.0 and sign_test(5, 5) == 1.0
 
 
 def test_paired_answers_pair_by_episode_id_on_the_episodes_both_kept():

@@ -44,7 +44,7 @@ EXPORTS = {
                  "paired_answers", "paired_test",
                  "plot_accuracy_by_pushes", "read_summary", "record_arm", "record_classes",
                  "run_sim2real",
-                 "score_arm", "sim2real"),
+                 "score_arm", "sign_test", "sim2real"),
     "randomisation": ("RandomiseConfig", "RandomiseRun", "randomise", "run_randomised"),
     "robot_env": ("RobotEnv",),
     "governor": ("episode_pushes", "fit_governor", "fitted_setting_governor", "recording_pushes"),

@@ -726,18 +726,24 @@ def paired_answers(
     )
 
 
+def sign_test(wins: int, losses: int) -> float:
+    """Exact two-sided sign test: the p-value of so uneven a split of wins and losses (ties
+    left out) if neither side were better."""
+    n, k = wins + losses, min(wins, losses)
+    tail = sum(math.comb(n, i) for i in range(k + 1)) / 2**n if n else 1.0
+    return min(1.0, 2 * tail)
+
+
 def paired_test(truth: np.ndarray, learned: np.ndarray, random: np.ndarray) -> dict[str, Any]:
     """Exact McNemar test on the same episodes classified after each arm's pushes: the
     episodes only one arm got right, and the two-sided p-value of so uneven a split if
-    neither arm were better."""
+    neither arm were better (the sign test on them)."""
     a, b = learned == truth, random == truth
     only_learned, only_random = int(np.sum(a & ~b)), int(np.sum(~a & b))
-    n, k = only_learned + only_random, min(only_learned, only_random)
-    tail = sum(math.comb(n, i) for i in range(k + 1)) / 2**n if n else 1.0
     return {
         "only_learned": only_learned,
         "only_random": only_random,
-        "p_value": min(1.0, 2 * tail),
+        "p_value": sign_test(only_learned, only_random),
     }
 
 
