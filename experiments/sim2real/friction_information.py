@@ -87,6 +87,8 @@ def main() -> None:
         parser.error("--pushes must be >= 1")
     if args.jitters < 2:
         parser.error("--jitters must be >= 2")
+    if args.seed < 0:
+        parser.error(f"--seed must be >= 0, got {args.seed}")
     if not 0 <= args.friction_spread < 1:
         parser.error(f"--friction-spread must be in [0, 1), got {args.friction_spread}")
     try:
