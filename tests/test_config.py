@@ -27,6 +27,7 @@ def test_defaults_are_the_papers():
         ({"timestep": 0.0}, "timestep"),
         ({"mass_range": (float("nan"), 1.0)}, "mass_range"),
         ({"init_joint_range": 2.0}, "init_joint_range"),
+        ({"tool_friction": 0.0}, "tool_friction"),
     ],
 )
 def test_bad_physics_is_refused_with_the_value_named(kwargs, message):

@@ -13,16 +13,24 @@ point, or the speed alone: what a robot that reports its executed speed could gi
 (`read`) each push read at the speed the robot reports, as `masspush sim2real` reads it.
 Group `com_offset` puts back only the objects' centre-of-mass offsets (each class's object
 its own, `Lab.com_offsets`): the one difference that is not the same for all five objects of
-a lab. Same chains and seeds in every row (paired); only the learned arm is run. `--density`
+a lab. Group `training` is the training world itself (no lab; with `--friction` and
+`--lengths` every chain pinned to them): what `all` leaves of the target world (condim 4, the
+links' contact priority, so their friction with each other is the table's) shows against it.
+Same chains and seeds in every row (paired); only the learned arm is run. `--density`
 weighs the pushes with another push density, e.g. one conditioned on the executed pushes
 (`masspush train-density --actions executed`); `--segments 8` runs 8 runs of 2 pushes per
-episode and prints the accuracy after each number of runs.
+episode and prints the accuracy after each number of runs. `--friction` and `--lengths` give
+the lab another table (its mean friction; the field's pattern stays) or chain (the links' true
+lengths; the robot is told them with the lab's own measuring errors): which of a lab's own
+draws holds it back?
 
     python experiments/sim2real/filter_gap_parts.py [--lab 5] [--groups none,all,told,...]
-        [--density FILE] [--segments N] [--out results/sim2real-filter-gap-parts]
+        [--density FILE] [--segments N] [--friction MU] [--lengths A,B]
+        [--out results/sim2real-filter-gap-parts]
 
 Recordings are kept in `--out/<lab>/<group>.jsonl` (`<group>-<N>runs.jsonl` with
-`--segments`) and reused; prints one row per group.
+`--segments`, `-friction<MU>` and `-lengths<A>,<B>` added with those) and reused; prints one
+row per group.
 """
 
 import argparse
@@ -39,6 +47,7 @@ from masspush.real import (
     FilterArm,
     Lab,
     Sim2RealConfig,
+    SimRobot,
     TargetWorld,
     TargetWorldRobot,
     record_arm,
@@ -82,6 +91,36 @@ def executed_patches(components: list[int]):
             mock.patch.object(FilterArm, "predict", told)]  # fmt: skip
 
 
+def lab_with(friction: float | None, lengths: list[float] | None):
+    """A patch of `Lab.__init__` that gives every lab this mean table friction and these
+    true link lengths (None: the lab's own), after the lab's own draws."""
+    original = Lab.__init__
+
+    def init(self, *args, **kwargs):
+        original(self, *args, **kwargs)
+        if friction is not None:
+            self.friction = self.field.mean = friction
+        if lengths is not None:
+            errors = self.told_lengths - self.lengths
+            self.lengths = np.array(lengths, dtype=float)
+            self.told_lengths = self.lengths + errors
+
+    return mock.patch.object(Lab, "__init__", init)
+
+
+def training_with(friction: float | None, lengths: list[float] | None):
+    """A patch of `SimRobot.__init__` (the training world's robot) that pins every chain's
+    table friction and link lengths (None: drawn as in training)."""
+    original = SimRobot.__init__
+    pinned = {k: v for k, v in (("friction", friction), ("lengths", lengths)) if v is not None}
+
+    def init(self, *args, **kwargs):
+        original(self, *args, **kwargs)
+        self.options = {**(self.options or {}), **pinned}
+
+    return mock.patch.object(SimRobot, "__init__", init)
+
+
 OBJECT_GROUPS = {"com_offset": ("com_offset",)}
 """Groups of this experiment only: knobs of one kind that differ object by object."""
 
@@ -96,10 +135,21 @@ def main() -> None:
     parser.add_argument("--groups", default=",".join(["none", "all", *told, *list(GROUPS)[1:]]))
     parser.add_argument("--density", default=None, help="push density file (default: shipped)")
     parser.add_argument("--segments", type=int, default=1, help="runs of 2 pushes per episode")
+    parser.add_argument(
+        "--friction",
+        type=float,
+        default=None,
+        help="the lab's mean table friction (default: its own)",
+    )
+    parser.add_argument(
+        "--lengths",
+        default=None,
+        help="the chain's true link lengths, m, comma-separated (default: its own)",
+    )
     parser.add_argument("--out", default="results/sim2real-filter-gap-parts")
     args = parser.parse_args()
     groups = args.groups.split(",")
-    known = ["all", *told, *GROUPS, *OBJECT_GROUPS]
+    known = ["all", "training", *told, *GROUPS, *OBJECT_GROUPS]
     unknown = set(groups) - set(known)
     if unknown:
         parser.error(f"--groups: unknown {sorted(unknown)}; known: {', '.join(known)}")
@@ -107,6 +157,17 @@ def main() -> None:
         parser.error("--lab must be >= 0")
     if args.segments < 1:
         parser.error("--segments must be >= 1")
+    if args.friction is not None and not 0 < args.friction < 10:
+        parser.error(f"--friction must be in (0, 10), got {args.friction}")
+    lengths = None
+    if args.lengths is not None:
+        n_links = get_setting(SETTING).n_links
+        try:
+            lengths = [float(v) for v in args.lengths.split(",")]
+        except ValueError:
+            parser.error(f"--lengths: not numbers: {args.lengths!r}")
+        if len(lengths) != n_links or not all(0.01 <= v <= 1 for v in lengths):
+            parser.error(f"--lengths: {n_links} lengths in 0.01-1 m, got {args.lengths!r}")
     out = Path(args.out) / str(args.lab)
     try:  # before any episode: a bad --out is said at once, not after the first group
         out.mkdir(parents=True, exist_ok=True)
@@ -125,8 +186,13 @@ def main() -> None:
     print("| lab | put back to training | accuracy (estimate) | chains lost |")
     print("|---|---|---|---|")
     runs = "" if args.segments == 1 else f"-{args.segments}runs"
+    if args.friction is not None:
+        runs += f"-friction{args.friction:g}"
+    if lengths is not None:
+        runs += "-lengths" + ",".join(f"{v:g}" for v in lengths)
     for group in groups:
-        world = TargetWorld() if group in told else world_without(group, GROUPS | OBJECT_GROUPS)
+        world = (TargetWorld() if group in told or group == "training"
+                 else world_without(group, GROUPS | OBJECT_GROUPS))  # fmt: skip
         path = out / f"{group}{runs}.jsonl"
         name = f"masspush target world, lab {args.lab}, {group} put back, bayes{weighed}"
         run = replace(config, read_speeds=group == "read")
@@ -142,8 +208,16 @@ def main() -> None:
             name = (f"masspush target world, lab {args.lab}, the filter told the {group} push, "
                     f"bayes{weighed}")  # fmt: skip
             patches = executed_patches([0] if group == "executed-speed" else [0, 1])
+        elif group == "training":
+            name = f"masspush training world, bayes{weighed}"
+            run = replace(run, world="training", lab=None)
+            patches = []
         else:
             patches = []
+        if args.friction is not None or lengths is not None:
+            name += f", friction {args.friction}, lengths {lengths}"
+            pin = training_with if group == "training" else lab_with
+            patches = [*patches, pin(args.friction, lengths)]
         with contextlib.ExitStack() as stack:
             for patch in patches:
                 stack.enter_context(patch)

@@ -185,7 +185,15 @@ class PhysicsConfig:
     narrower for a chain put down by hand in a chosen direction (`masspush sim2real
     --start-yaw`)."""
     link_friction: float = 0.5
-    """Friction of link-link and link-pusher contacts (the table's mu governs link-table) [ours]."""
+    """Friction of link-link contacts (the table's mu governs link-table) [ours]. A link-pusher
+    contact takes the larger of it and `tool_friction` (MuJoCo's rule for geoms of equal
+    priority), so with the defaults it is 1.0, not 0.5."""
+    tool_friction: float = 1.0
+    """Friction of the pusher's tool (the stiff pusher's tip, an arm's end-effector) [MuJoCo's
+    default geom friction, which every shipped model was trained with]. Where an arm's tip
+    sinks a little during contact, the tool's friction drags the link down onto the table:
+    with 1.0 the stationary UR10 all but jams a chain on a table of friction near 1
+    (docs/notebook/2026-12-07-sticky-tables.md)."""
 
     # --- the push -----------------------------------------------------------------------
     push_speed_max: float = 5.0
@@ -274,6 +282,7 @@ class PhysicsConfig:
             "max_tilt",
             "max_lift",
             "link_friction",
+            "tool_friction",
             "pusher_contact_time",
         ):
             _check_positive(name, getattr(self, name))

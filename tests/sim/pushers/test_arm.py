@@ -370,3 +370,36 @@ def test_tool_rotation_is_a_rotation_with_numpys_own_bits():
     r = tool_rotation(np.array([0.6, 0.8, 0.0]), 0.3)
     np.testing.assert_allclose(r.T @ r, np.eye(3), atol=1e-12)
     assert np.linalg.det(r) == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("pusher", ["stiff", *ARM_NAMES])
+def test_the_tool_has_the_configs_friction(pusher):
+    for friction in (PhysicsConfig.tool_friction, 0.3):
+        physics = PhysicsConfig(n_links=2, tool_friction=friction)
+        chain = sample_chain(physics, np.random.default_rng(0), STRAIGHT, allow_out_of_range=True)
+        model = ChainSim(chain, physics, make_pusher(pusher)).model
+        tools = [
+            g
+            for g in range(model.ngeom)
+            if model.geom(g).name.split("/")[-1] in ("ee", "pusher_tip")
+        ]
+        assert len(tools) == 1
+        assert model.geom_friction[tools[0], 0] == friction
+
+
+def test_on_a_sticky_table_the_tools_friction_holds_the_chain_back():
+    # The stationary UR10's tip sinks a little in contact; its friction then drags the link
+    # down onto the table, which on a sticky table all but jams the chain
+    # (docs/notebook/2026-12-07-sticky-tables.md). On a slippery table it hardly matters.
+    def moved(tool_friction, table_friction):
+        physics = PhysicsConfig(n_links=2, tool_friction=tool_friction,
+                                link_friction=min(0.5, tool_friction))  # fmt: skip
+        options = {**STRAIGHT, "masses": [0.064, 0.192], "friction": table_friction}
+        chain = sample_chain(physics, np.random.default_rng(0), options, allow_out_of_range=True)
+        sim = ChainSim(chain, physics, make_pusher("ur10-stationary"))
+        start = sim.config()[:2].copy()
+        assert sim.push(np.array([0.2, 0.0])).failure is None
+        return float(np.linalg.norm(sim.config()[:2] - start))
+
+    assert moved(0.1, 1.0) > 1.5 * moved(1.0, 1.0)
+    assert moved(0.1, 0.5) == pytest.approx(moved(1.0, 0.5), rel=0.15)

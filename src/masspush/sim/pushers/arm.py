@@ -241,6 +241,7 @@ class ArmPusher:
         # parse's, and a copy costs a tenth of one).
         frame = spec.worldbody.add_frame(pos=ARM_PARK.tolist())
         frame.attach_body(self._spec().copy().body("base"), self.prefix, "")
+        spec.geom(f"{self.prefix}ee").friction[0] = physics.tool_friction
         # Room for a push of the batch path's lockstep (`compiled.Userdata`); stepping
         # ignores it.
         spec.nuserdata = max(spec.nuserdata, compiled.Userdata.SIZE)

@@ -53,6 +53,7 @@ class StiffPusher:
             contype=contype,
             conaffinity=conaffinity,
             mass=0,
+            friction=[physics.tool_friction, 0.005, 0.0001],
             rgba=[0.9, 0.3, 0.1, 1],
             # MuJoCo needs a contact time constant of at least two steps.
             solref=[max(physics.pusher_contact_time, 2 * physics.timestep), 1.0],
