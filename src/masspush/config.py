@@ -190,10 +190,12 @@ class PhysicsConfig:
     priority), so with the defaults it is 1.0, not 0.5."""
     tool_friction: float = 1.0
     """Friction of the pusher's tool (the stiff pusher's tip, an arm's end-effector) [MuJoCo's
-    default geom friction, which every shipped model was trained with]. Where an arm's tip
-    sinks a little during contact, the tool's friction drags the link down onto the table:
-    with 1.0 the stationary UR10 all but jams a chain on a table of friction near 1
-    (docs/notebook/2026-12-07-sticky-tables.md)."""
+    default geom friction, which every shipped model was trained with]. In contact the link's
+    face slides along the tool up or down, so the tool's friction presses the link onto the
+    table (the force on the tool points down by about this times its push). With 1.0, a chain
+    on a table of friction 1 moved a fifth as far (median) as on one of 0.5 under the
+    stationary UR10's pushes (seven tenths with a tool of 0.5), and half as far under the stiff
+    pusher's (as far with 0.5) (docs/notebook/2026-12-07-sticky-tables.md)."""
 
     # --- the push -----------------------------------------------------------------------
     push_speed_max: float = 5.0

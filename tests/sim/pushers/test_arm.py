@@ -388,8 +388,8 @@ def test_the_tool_has_the_configs_friction(pusher):
 
 
 def test_on_a_sticky_table_the_tools_friction_holds_the_chain_back():
-    # The stationary UR10's tip sinks a little in contact; its friction then drags the link
-    # down onto the table, which on a sticky table all but jams the chain
+    # In contact the link's face slides along the tool, whose friction then presses the link
+    # onto the table: on a sticky table the stationary UR10's push all but jams the chain
     # (docs/notebook/2026-12-07-sticky-tables.md). On a slippery table it hardly matters.
     def moved(tool_friction, table_friction):
         physics = PhysicsConfig(n_links=2, tool_friction=tool_friction,
