@@ -24,7 +24,9 @@ separation with the friction allowance was larger at the first friction than at 
 from __future__ import annotations
 
 import argparse
+import sys
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
@@ -65,6 +67,9 @@ def jittered(chain, action: np.ndarray, rng: np.random.Generator, env: EnvConfig
 
 
 def main() -> None:
+    sys.path.insert(0, str(Path(__file__).parent))  # the sibling probe's option parsing
+    from sticky_table_pushes import numbers
+
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--setting", default="real-ur10")
     parser.add_argument("--frictions", default="0.5,0.75,1.0",
@@ -77,12 +82,7 @@ def main() -> None:
                         help="jittered pushes for each push's scatter (default 4)")  # fmt: skip
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
-    try:
-        frictions = [float(f) for f in args.frictions.split(",")]
-    except ValueError:
-        parser.error(f"--frictions: comma-separated numbers, got {args.frictions!r}")
-    if not all(np.isfinite(f) and f > 0 for f in frictions):
-        parser.error(f"--frictions must all be positive, got {args.frictions!r}")
+    frictions = numbers(args.frictions, "--frictions", parser)
     if args.pushes < 1:
         parser.error("--pushes must be >= 1")
     if args.jitters < 2:

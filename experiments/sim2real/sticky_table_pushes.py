@@ -49,13 +49,12 @@ def push_once(physics, chain, pusher: str, action: np.ndarray) -> tuple[float, f
     """One push: how far the first link moved (m), its peak speed (m/s), and the tool's
     mean downward force over its mean horizontal force while in contact (nan if the push
     failed)."""
-    sim = ChainSim(chain, physics, make_pusher(pusher))
+    made = make_pusher(pusher)
+    sim = ChainSim(chain, physics, made)
     if sim.initial_failure is not None:
         return (np.nan,) * 3
     model, data = sim.model, sim.data
-    tool = [
-        g for g in range(model.ngeom) if model.geom(g).name.split("/")[-1] in ("ee", "pusher_tip")
-    ]
+    tool = model.geom(made.tool).id
     peak, down, across = [0.0], [], []
     force = np.zeros(6)
 
@@ -64,7 +63,7 @@ def push_once(physics, chain, pusher: str, action: np.ndarray) -> tuple[float, f
         on_tool = np.zeros(3)
         for i in range(data.ncon):
             contact = data.contact[i]
-            if tool[0] in (contact.geom1, contact.geom2):
+            if tool in (contact.geom1, contact.geom2):
                 mujoco.mj_contactForce(model, data, i, force)
                 on_tool += contact.frame.reshape(3, 3).T @ force[:3]
         if on_tool.any():

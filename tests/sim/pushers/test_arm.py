@@ -377,14 +377,9 @@ def test_the_tool_has_the_configs_friction(pusher):
     for friction in (PhysicsConfig.tool_friction, 0.3):
         physics = PhysicsConfig(n_links=2, tool_friction=friction)
         chain = sample_chain(physics, np.random.default_rng(0), STRAIGHT, allow_out_of_range=True)
-        model = ChainSim(chain, physics, make_pusher(pusher)).model
-        tools = [
-            g
-            for g in range(model.ngeom)
-            if model.geom(g).name.split("/")[-1] in ("ee", "pusher_tip")
-        ]
-        assert len(tools) == 1
-        assert model.geom_friction[tools[0], 0] == friction
+        tool = make_pusher(pusher)
+        model = ChainSim(chain, physics, tool).model
+        assert model.geom_friction[model.geom(tool.tool).id, 0] == friction
 
 
 def test_on_a_sticky_table_the_tools_friction_holds_the_chain_back():

@@ -208,6 +208,7 @@ class ArmPusher:
         self.name = arm
         self.kp, self.kd = kp, kd
         self.prefix = f"{arm}/"
+        self.tool = f"{self.prefix}ee"
         self.trace = PushTrace()
         self._on_step: StepHook | None = None
         self._model: mujoco.MjModel | None = None  # the model the handles belong to
@@ -241,7 +242,7 @@ class ArmPusher:
         # parse's, and a copy costs a tenth of one).
         frame = spec.worldbody.add_frame(pos=ARM_PARK.tolist())
         frame.attach_body(self._spec().copy().body("base"), self.prefix, "")
-        spec.geom(f"{self.prefix}ee").friction[0] = physics.tool_friction
+        spec.geom(self.tool).friction[0] = physics.tool_friction
         # Room for a push of the batch path's lockstep (`compiled.Userdata`); stepping
         # ignores it.
         spec.nuserdata = max(spec.nuserdata, compiled.Userdata.SIZE)
@@ -252,7 +253,7 @@ class ArmPusher:
             joints = [model.joint(f"{p}joint{i}") for i in range(1, 7)]
             base = model.body(f"{p}base").id
             arm_bodies = {b for b in range(model.nbody) if _in_subtree(model, b, base)}
-            ee = model.geom(f"{p}ee").id
+            ee = model.geom(self.tool).id
             arm_geoms = [g for g in range(model.ngeom) if model.geom_bodyid[g] in arm_bodies]
             chain_geoms = [g for g in range(model.ngeom) if model.geom(g).name.startswith("box")]
             self._model = model

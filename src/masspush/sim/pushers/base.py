@@ -31,6 +31,9 @@ class Pusher(Protocol):
     executed_speed: float
     """The last push's speed as executed: the tool's top speed along the push before the
     hold ended, m/s (below the commanded one where the robot could not reach it)."""
+    tool: str
+    """The name, in a scene, of the geom that touches the chain (its friction is
+    `PhysicsConfig.tool_friction`)."""
 
     def add_to(self, spec: mujoco.MjSpec, physics: PhysicsConfig) -> None:
         """Add the pusher's bodies, joints and actuators to a scene being built."""

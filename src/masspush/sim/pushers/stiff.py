@@ -35,6 +35,7 @@ class StiffPusher:
     name = "stiff"
     workspace = None  # the idealised pusher reaches the chain wherever it lies
     executed_speed = 0.0  # velocity-controlled and 10^4 kg: it holds the commanded speed
+    tool = "pusher_tip"
 
     def add_to(self, spec: mujoco.MjSpec, physics: PhysicsConfig) -> None:
         body = spec.worldbody.add_body(
@@ -47,7 +48,7 @@ class StiffPusher:
             body.add_joint(name=name, type=mujoco.mjtJoint.mjJNT_SLIDE, axis=axis)
         contype, conaffinity = PUSHER_CONTACT_BITS
         body.add_geom(
-            name="pusher_tip",
+            name=self.tool,
             type=mujoco.mjtGeom.mjGEOM_CAPSULE,
             size=[physics.pusher_radius, physics.link_height, 0],
             contype=contype,
