@@ -64,6 +64,19 @@ def test_a_setting_may_choose_its_pushes_per_episode(tmp_path):
     assert get_setting("a", path).env_config().pushes == 5
 
 
+def test_a_setting_comes_back_from_its_dict_with_its_physics(tmp_path):
+    from masspush.settings import SETTINGS, Setting
+
+    path = tmp_path / "s.toml"
+    path.write_text("[real-ur10]\nlinks = 2\nmass_range = [0.01, 0.3]\ntool_friction = 0.5\n"
+                    "friction_range = [0.4, 1.1]\npushes = 3\n")  # fmt: skip
+    ours = get_setting("real-ur10", path)
+    for setting in [*SETTINGS.values(), get_setting("real-ur10-4push"), ours]:
+        back = Setting.from_dict(setting.as_dict())
+        assert back.physics() == setting.physics() and back.pushes == setting.pushes
+    assert Setting.from_dict(ours.as_dict()).physics().tool_friction == 0.5
+
+
 def test_unknown_setting_lists_the_known_ones():
     with pytest.raises(ValueError, match=r"2link-0\.1-1"):
         get_setting("2link")

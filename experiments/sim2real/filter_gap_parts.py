@@ -22,15 +22,16 @@ weighs the pushes with another push density, e.g. one conditioned on the execute
 episode and prints the accuracy after each number of runs. `--friction` and `--lengths` give
 the lab another table (its mean friction; the field's pattern stays) or chain (the links' true
 lengths; the robot is told them with the lab's own measuring errors): which of a lab's own
-draws holds it back?
+draws holds it back? `--tool-friction` (group `training` only) gives the training world's
+tool another friction, e.g. to measure a push density trained with it (`--density`).
 
     python experiments/sim2real/filter_gap_parts.py [--lab 5] [--groups none,all,told,...]
-        [--density FILE] [--segments N] [--friction MU] [--lengths A,B]
+        [--density FILE] [--segments N] [--friction MU] [--lengths A,B] [--tool-friction MU]
         [--out results/sim2real-filter-gap-parts]
 
 Recordings are kept in `--out/<lab>/<group>.jsonl` (`<group>-<N>runs.jsonl` with
-`--segments`, `-friction<MU>` and `-lengths<A>,<B>` added with those) and reused; prints one
-row per group.
+`--segments`; `-friction<MU>`, `-lengths<A>,<B>`, `-tool<MU>` and `-density<NAME>` added with
+those) and reused; prints one row per group.
 """
 
 import argparse
@@ -108,14 +109,20 @@ def lab_with(friction: float | None, lengths: list[float] | None):
     return mock.patch.object(Lab, "__init__", init)
 
 
-def training_with(friction: float | None, lengths: list[float] | None):
+def training_with(
+    friction: float | None, lengths: list[float] | None, tool_friction: float | None = None
+):
     """A patch of `SimRobot.__init__` (the training world's robot) that pins every chain's
-    table friction and link lengths (None: drawn as in training)."""
+    table friction and link lengths (None: drawn as in training) and gives its tool the
+    friction `tool_friction` (None: the setting's)."""
     original = SimRobot.__init__
     pinned = {k: v for k, v in (("friction", friction), ("lengths", lengths)) if v is not None}
 
-    def init(self, *args, **kwargs):
-        original(self, *args, **kwargs)
+    def init(self, setting, *args, **kwargs):
+        if tool_friction is not None:
+            overrides = {**setting.overrides, "tool_friction": tool_friction}
+            setting = replace(setting, overrides=overrides)
+        original(self, setting, *args, **kwargs)
         self.options = {**(self.options or {}), **pinned}
 
     return mock.patch.object(SimRobot, "__init__", init)
@@ -146,6 +153,12 @@ def main() -> None:
         default=None,
         help="the chain's true link lengths, m, comma-separated (default: its own)",
     )
+    parser.add_argument(
+        "--tool-friction",
+        type=float,
+        default=None,
+        help="group training only: the tool's friction (default: the setting's, 1.0)",
+    )
     parser.add_argument("--out", default="results/sim2real-filter-gap-parts")
     args = parser.parse_args()
     groups = args.groups.split(",")
@@ -159,6 +172,12 @@ def main() -> None:
         parser.error("--segments must be >= 1")
     if args.friction is not None and not 0 < args.friction < 10:
         parser.error(f"--friction must be in (0, 10), got {args.friction}")
+    if args.tool_friction is not None:
+        if not 0 < args.tool_friction < 10:
+            parser.error(f"--tool-friction must be in (0, 10), got {args.tool_friction}")
+        if groups != ["training"]:
+            parser.error("--tool-friction: only with --groups training (the target world's "
+                         "tool takes the links' friction)")  # fmt: skip
     lengths = None
     if args.lengths is not None:
         n_links = get_setting(SETTING).n_links
@@ -190,6 +209,10 @@ def main() -> None:
         runs += f"-friction{args.friction:g}"
     if lengths is not None:
         runs += "-lengths" + ",".join(f"{v:g}" for v in lengths)
+    if args.tool_friction is not None:
+        runs += f"-tool{args.tool_friction:g}"
+    if args.density is not None:  # another density's recording is not this one's to reuse
+        runs += f"-density{Path(args.density).stem}"
     for group in groups:
         world = (TargetWorld() if group in told or group == "training"
                  else world_without(group, GROUPS | OBJECT_GROUPS))  # fmt: skip
@@ -216,8 +239,12 @@ def main() -> None:
             patches = []
         if args.friction is not None or lengths is not None:
             name += f", friction {args.friction}, lengths {lengths}"
-            pin = training_with if group == "training" else lab_with
-            patches = [*patches, pin(args.friction, lengths)]
+        pins = (args.friction, lengths, args.tool_friction)
+        if group == "training" and any(v is not None for v in pins):
+            name += "" if args.tool_friction is None else f", tool {args.tool_friction}"
+            patches = [*patches, training_with(args.friction, lengths, args.tool_friction)]
+        elif args.friction is not None or lengths is not None:
+            patches = [*patches, lab_with(args.friction, lengths)]
         with contextlib.ExitStack() as stack:
             for patch in patches:
                 stack.enter_context(patch)

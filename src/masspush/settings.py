@@ -89,6 +89,14 @@ class Setting:
             **{k: tuple(v) if isinstance(v, list) else v for k, v in self.overrides.items()},
         )
 
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> Setting:
+        """The setting `as_dict` wrote (e.g. a dataset manifest's), overrides included: a
+        settings file's physics, not the named built-in's. `as_dict` keeps no pusher (a
+        manifest records the one it used): the default's."""
+        return cls(d["name"], int(d["n_links"]), tuple(d["mass_range"]),
+                   dict(d.get("overrides", {})), pushes=d.get("pushes"))  # fmt: skip
+
     def as_dict(self) -> dict[str, Any]:
         extra = {} if self.pushes is None else {"pushes": self.pushes}
         return {

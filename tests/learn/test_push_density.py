@@ -126,6 +126,42 @@ def test_training_writes_a_density_that_resumes_to_the_same_weights(dataset, tmp
         assert torch.equal(value, resumed.state_dict()[key]), key
 
 
+def test_a_density_records_the_physics_its_data_was_collected_in(tmp_path):
+    # A settings file's own prior and tool, not those of the built-in setting of that name.
+    settings = tmp_path / "s.toml"
+    settings.write_text("[2link-1-10]\nlinks = 2\nmass_range = [1.0, 10.0]\npusher = 'stiff'\n"
+                        "friction_range = [0.4, 0.9]\ntool_friction = 0.5\n")  # fmt: skip
+    data = tmp_path / "ds"
+    collect_dataset(CollectConfig(setting="2link-1-10", out=str(data), episodes=10,
+                                  settings_file=str(settings)), progress=False)  # fmt: skip
+    config = DensityConfig(data=(str(data),), out=str(tmp_path / "d.pt"), steps=2,
+                           batch_size=4, width=8, depth=1, components=1, held_out=0.3)  # fmt: skip
+    train_push_density(config, progress=False)
+    meta = load_push_density(config.out).meta
+    assert (meta["friction_range"], meta["tool_friction"]) == ([0.4, 0.9], 0.5)
+    built_in = DensityConfig(**{**config.__dict__, "out": str(tmp_path / "e.pt")})
+    train_push_density(replace(built_in, data=(str(_built_in(tmp_path)),)), progress=False)
+    meta = load_push_density(built_in.out).meta
+    assert (meta["friction_range"], meta["tool_friction"]) == ([0.5, 1.0], 1.0)
+
+
+def test_data_too_small_to_hold_pushes_out_is_refused_before_training(tmp_path):
+    data = tmp_path / "one"  # its one episode held out, nothing left to train on
+    collect_dataset(CollectConfig(setting="2link-1-10", out=str(data), episodes=1,
+                                  pusher="stiff"), progress=False)  # fmt: skip
+    config = DensityConfig(data=(str(data),), out=str(tmp_path / "d.pt"), steps=2)
+    with pytest.raises(ValueError, match="0 pushes to train on"):
+        train_push_density(config, progress=False)
+    assert not (tmp_path / "d.pt").exists() and not (tmp_path / "d.pt.ckpt").exists()
+
+
+def _built_in(tmp_path):
+    data = tmp_path / "built-in"
+    collect_dataset(CollectConfig(setting="2link-1-10", out=str(data), episodes=10,
+                                  pusher="stiff"), progress=False)  # fmt: skip
+    return data
+
+
 def test_a_checkpoint_of_another_run_is_refused(dataset, tmp_path, monkeypatch):
     config = DensityConfig(data=(str(dataset),), out=str(tmp_path / "c.pt"), steps=20,
                            batch_size=32, width=8, depth=1, components=1,

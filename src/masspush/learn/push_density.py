@@ -357,7 +357,8 @@ def _same(a: Any, b: Any) -> bool:
 
 
 def density_meta(manifest: Any, physics: Any) -> dict:
-    """What a density is trained for: the chain's links and priors, the pusher, the noise."""
+    """What a density is trained for: the chain's links and priors, the pusher, the tool's
+    friction, the noise."""
     return {
         "setting": manifest.setting["name"],
         "n_links": int(physics.n_links),
@@ -366,6 +367,9 @@ def density_meta(manifest: Any, physics: Any) -> dict:
         "friction_range": [float(v) for v in physics.friction_range],
         "obs_noise": float(manifest.obs_noise),
         "action_noise": float(manifest.action_noise),
+        # Not checked against the filter's: the target world's tool takes the links' friction,
+        # and a lab's own tool is what it measured (docs/real-robot.md).
+        "tool_friction": float(physics.tool_friction),
         # "randomised": a likelihood of many worlds, broader than the setting's own
         "worlds": manifest.worlds,
     }
@@ -378,7 +382,7 @@ def train_push_density(config: DensityConfig, progress: bool = True) -> dict:
     from tqdm import tqdm
 
     from masspush.data.dataset import load_dataset, read_manifest
-    from masspush.settings import get_setting
+    from masspush.settings import Setting
 
     manifests = [read_manifest(d) for d in config.data]  # checks every directory first
     first = manifests[0]
@@ -389,8 +393,9 @@ def train_push_density(config: DensityConfig, progress: bool = True) -> dict:
                     f"data: {path} has {key} {getattr(other, key)!r}, "
                     f"{config.data[0]} has {getattr(first, key)!r}"
                 )
-    setting = get_setting(first.setting["name"])
-    meta = density_meta(first, setting.physics())
+    # The physics the episodes were collected in: a settings file's overrides (its tool's
+    # friction, its prior) included, which the named built-in setting would not have.
+    meta = density_meta(first, Setting.from_dict(first.setting).physics())
     placed = config.placed
     if placed is None:
         placed = pusher_kind(first.pusher).workspace is not None
@@ -414,6 +419,11 @@ def train_push_density(config: DensityConfig, progress: bool = True) -> dict:
     seen = np.concatenate(seen)
     meta["friction_seen"] = [float(seen.min()), float(seen.max())]
     x_held, y_held = np.concatenate(held[0]), np.concatenate(held[1])
+    if not len(x_fit) or not len(x_held):  # said before training, not as a crash after it
+        raise ValueError(
+            f"data: {len(x_fit)} pushes to train on and {len(x_held)} held out "
+            f"(held_out {config.held_out}); collect more episodes"
+        )
     torch.manual_seed(config.seed)
     net = PushDensity(x_fit.shape[1], y_fit.shape[1], config.components, config.width,
                       config.depth, meta=meta)  # fmt: skip
