@@ -17,6 +17,7 @@ from masspush.real.density_tuning import (
     check_calibration_length,
     class_log_likelihoods,
     cross_validate_tuning,
+    evidence_per_push,
     first_pushes,
     friction_grid,
     labelled_pushes,
@@ -140,6 +141,19 @@ def test_first_pushes_keeps_each_episodes_first_ones(lab):
         assert len(e.actions) == len(p.actions)
 
 
+def test_the_density_that_made_the_pushes_explains_them_best(lab):
+    teacher, student, recording, _, _ = lab
+    masses = np.array(list(CLASSES.values()))
+    labels = np.array([list(CLASSES).index(e["label"]) for e in recording.episodes])
+    pushes, grid = labelled_pushes(recording), friction_grid(teacher, 4)
+    own = evidence_per_push(teacher, pushes, labels, masses, grid)
+    assert own > evidence_per_push(student, pushes, labels, masses, grid) + 1
+    # the true classes' mean log-likelihood per push (episodes of equal length)
+    assert own == pytest.approx(mean_log_lik(teacher, recording, masses) / 8)
+    with pytest.raises(ValueError, match="no labelled push"):
+        evidence_per_push(teacher, first_pushes(pushes, 0), labels, masses, grid)
+
+
 def test_push_ladder_doubles_below_the_longest_episode():
     assert push_ladder(0) == push_ladder(2) == []
     assert push_ladder(3) == [2]
@@ -186,6 +200,7 @@ def test_tune_density_and_classify_commands(lab, tmp_path, capsys):
     assert main([*args, "--folds", "3", "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "3-fold cross-validated" in printed and "untuned density" in printed
+    assert re.search(r"explains these pushes at -?\d+\.\d{3} nats per push", printed)
     assert "read from their first pushes only" in printed and "2: " in printed
     tuned = load_push_density(out).meta["tuned"]
     assert tuned["classes"] == {k: list(v) for k, v in sorted(CLASSES.items())}

@@ -34,7 +34,9 @@ from masspush.real.density_tuning import (
     class_masses,
     class_posterior,
     cross_validate_tuning,
+    evidence_per_push,
     first_pushes,
+    friction_grid,
     labelled_pushes,
     pushes_per_episode,
     record_tuning,
@@ -345,6 +347,15 @@ def tune(job: TuneDensityJob, config: TuneConfig, progress: bool = True) -> list
         f"{len(labels)} episodes, {len(classes)} classes, {total} pushes ({per_episode:.1f} "
         "per episode: for sorting episodes up to about as long)"
     ]
+    # Which of several densities (another tool's, another training) fits the lab: the
+    # untuned one's evidence, as comparable between them as the sorting and less noisy.
+    grid = friction_grid(density, config.sort_frictions, config.sort_range)
+    evidence = evidence_per_push(density, pushes, labels, masses, grid)
+    lines.append(
+        f"the untuned density explains these pushes at {evidence:.3f} nats per push (true "
+        "classes, friction marginalised; higher fits your lab better: compare densities on "
+        "the same episodes)"
+    )
     scores = None
     if config.folds:
         scores = cross_validate_tuning(density, pushes, labels, masses, config, progress)
@@ -362,7 +373,8 @@ def tune(job: TuneDensityJob, config: TuneConfig, progress: bool = True) -> list
         ]
     tuned = tune_density(density, pushes, masses[labels], config, progress)
     provenance = {"episodes": list(job.episodes), "from": str(path),
-                  "from_digest": density.digest(), "cross_validation": scores}  # fmt: skip
+                  "from_digest": density.digest(), "cross_validation": scores,
+                  "untuned_evidence_per_push": evidence}  # fmt: skip
     record_tuning(tuned, classes, masses, config, pushes, provenance)
     # What a later day's sorting compares its own reading with (`check_drift`).
     reading = read_friction(tuned, recording, f"episodes: {named}")

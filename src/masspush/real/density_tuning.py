@@ -232,6 +232,22 @@ def class_log_likelihoods(
     return np.logaddexp.reduce(joint, axis=2) - math.log(len(frictions))
 
 
+def evidence_per_push(
+    density: PushDensity, pushes: list[LabelledPush], labels: np.ndarray, masses: np.ndarray,
+    frictions: np.ndarray,
+) -> float:  # fmt: skip
+    """Mean log-likelihood per push of labelled episodes under their true classes (`masses`
+    (C, n), `labels` (E,)), the table friction marginalised over `frictions`: how well a
+    density explains a lab's pushes. Higher is better; comparable between densities only on
+    the same episodes (e.g. one trained for another tool:
+    docs/notebook/2026-12-07-slicker-tool.md)."""
+    total = sum(len(p.actions) for p in pushes)
+    if total == 0:
+        raise ValueError("no labelled push to weigh")
+    log_lik = class_log_likelihoods(density, pushes, masses, frictions)
+    return float(log_lik[np.arange(len(labels)), labels].sum() / total)
+
+
 def tune_density(
     density: PushDensity, pushes: list[LabelledPush], masses: np.ndarray, config: TuneConfig,
     progress: bool = True,
