@@ -25,6 +25,7 @@ from masspush.real.density_tuning import (
     posterior_classes,
     push_ladder,
     record_tuning,
+    true_class_evidence,
     tune_density,
     tuned_classes,
 )
@@ -150,6 +151,8 @@ def test_the_density_that_made_the_pushes_explains_them_best(lab):
     assert own > evidence_per_push(student, pushes, labels, masses, grid) + 1
     # the true classes' mean log-likelihood per push (episodes of equal length)
     assert own == pytest.approx(mean_log_lik(teacher, recording, masses) / 8)
+    read = class_log_likelihoods(teacher, pushes, masses, grid)
+    assert true_class_evidence(read, pushes, labels) == pytest.approx(own)
     with pytest.raises(ValueError, match="no labelled push"):
         evidence_per_push(teacher, first_pushes(pushes, 0), labels, masses, grid)
 
@@ -182,6 +185,14 @@ def test_cross_validation_tunes_without_the_held_out_fold_and_counts_every_episo
     assert np.mean(one.argmax(1) == labels) == pytest.approx(first["untuned_accuracy"])
     assert not np.allclose(first["log_likelihoods"], log_lik)
     assert first["by_pushes"] == []  # nothing shorter than one push to read
+    # the caller's own untuned reading is used, not read again
+    given = cross_validate_tuning(student, labelled_pushes(recording), labels, masses, config,
+                                  progress=False, count=1, untuned=-one)  # fmt: skip
+    assert given["untuned_accuracy"] == pytest.approx(np.mean((-one).argmax(1) == labels))
+    assert given["log_likelihoods"] == first["log_likelihoods"]
+    with pytest.raises(ValueError, match="untuned"):
+        cross_validate_tuning(student, labelled_pushes(recording), labels, masses, config,
+                              progress=False, untuned=one[:, :1])  # fmt: skip
     # the early readings are what the same folds give with the episodes cut short
     assert [s["pushes"] for s in scores["by_pushes"]] == [2, 4]  # episodes of 8 pushes
     two = cross_validate_tuning(student, labelled_pushes(recording), labels, masses, config,

@@ -31,10 +31,10 @@ from masspush.real.classifier import (
 from masspush.real.density_tuning import (
     TuneConfig,
     check_calibration_length,
+    class_log_likelihoods,
     class_masses,
     class_posterior,
     cross_validate_tuning,
-    evidence_per_push,
     first_pushes,
     friction_grid,
     labelled_pushes,
@@ -42,6 +42,7 @@ from masspush.real.density_tuning import (
     record_tuning,
     sorting_evidence,
     sorting_grid,
+    true_class_evidence,
     tune_density,
 )
 from masspush.real.robot import check_geometry, model_speed_reader
@@ -349,8 +350,10 @@ def tune(job: TuneDensityJob, config: TuneConfig, progress: bool = True) -> list
     ]
     # Which of several densities (another tool's, another training) fits the lab: the
     # untuned one's evidence, as comparable between them as the sorting and less noisy.
+    # Read once: the evidence and the cross-validation's untuned sorting.
     grid = friction_grid(density, config.sort_frictions, config.sort_range)
-    evidence = evidence_per_push(density, pushes, labels, masses, grid)
+    untuned = class_log_likelihoods(density, pushes, masses, grid)
+    evidence = true_class_evidence(untuned, pushes, labels)
     lines.append(
         f"the untuned density explains these pushes at {evidence:.3f} nats per push (true "
         "classes, friction marginalised; higher fits your lab better: compare densities on "
@@ -358,7 +361,8 @@ def tune(job: TuneDensityJob, config: TuneConfig, progress: bool = True) -> list
     )
     scores = None
     if config.folds:
-        scores = cross_validate_tuning(density, pushes, labels, masses, config, progress)
+        scores = cross_validate_tuning(density, pushes, labels, masses, config, progress,
+                                       untuned=untuned)  # fmt: skip
         lines += [
             f"sorted by class posterior: untuned density {100 * scores['untuned_accuracy']:.1f} %, "
             f"tuned ({config.folds}-fold cross-validated) {100 * scores['accuracy']:.1f} % "

@@ -241,10 +241,20 @@ def evidence_per_push(
     density explains a lab's pushes. Higher is better; comparable between densities only on
     the same episodes (e.g. one trained for another tool:
     docs/notebook/2026-12-07-slicker-tool.md)."""
+    if not any(len(p.actions) for p in pushes):  # before reading them
+        raise ValueError("no labelled push to weigh")
+    log_lik = class_log_likelihoods(density, pushes, masses, frictions)
+    return true_class_evidence(log_lik, pushes, labels)
+
+
+def true_class_evidence(
+    log_lik: np.ndarray, pushes: list[LabelledPush], labels: np.ndarray
+) -> float:
+    """`evidence_per_push` from the episodes' class log-likelihoods (E, C) already read
+    (`class_log_likelihoods`), so that a caller that also sorts by them reads them once."""
     total = sum(len(p.actions) for p in pushes)
     if total == 0:
         raise ValueError("no labelled push to weigh")
-    log_lik = class_log_likelihoods(density, pushes, masses, frictions)
     return float(log_lik[np.arange(len(labels)), labels].sum() / total)
 
 
@@ -279,6 +289,7 @@ def tune_density(
 def cross_validate_tuning(
     density: PushDensity, pushes: list[LabelledPush], labels: np.ndarray, masses: np.ndarray,
     config: TuneConfig, progress: bool = True, count: int | None = None,
+    untuned: np.ndarray | None = None,
 ) -> dict[str, Any]:  # fmt: skip
     """Stratified k-fold accuracy of sorting episodes by class posterior under the density
     tuned on the other folds (on all their pushes; classes' `masses` (C, n), `labels` (E,)),
@@ -286,13 +297,19 @@ def cross_validate_tuning(
     the confusion (rows: truth), each episode's out-of-fold class and class
     log-likelihoods, the untuned density's accuracy on the same episodes, and
     (`by_pushes`) the accuracy with each held-out episode read from only its first 2, 4,
-    8, ... pushes (`push_ladder`): how the sorting grows with the length of a run."""
+    8, ... pushes (`push_ladder`): how the sorting grows with the length of a run.
+    `untuned`: the untuned density's class log-likelihoods (E, C) of the same reading, where
+    the caller has them (`class_log_likelihoods` over the sorting grid), not read again."""
     c = len(masses)
     counts = fold_counts(labels, c, config.folds)
     # Sorted as the tuned density will sort (`sorting_grid`).
     frictions = friction_grid(density, config.sort_frictions, config.sort_range)
     read = first_pushes(pushes, count)
-    untuned = class_log_likelihoods(density, read, masses, frictions).argmax(1)
+    if untuned is None:
+        untuned = class_log_likelihoods(density, read, masses, frictions)
+    elif np.shape(untuned) != (len(labels), c):
+        raise ValueError(f"untuned: {np.shape(untuned)} log-likelihoods for {len(labels)} "
+                         f"episodes of {c} classes")  # fmt: skip
     log_lik = np.zeros((len(labels), c))
     ladder = push_ladder(max((len(p.actions) for p in read), default=0))
     hits = np.zeros((len(ladder), len(labels)), bool)
@@ -311,7 +328,7 @@ def cross_validate_tuning(
     np.add.at(confusion, (labels, predicted), 1)
     return {
         "accuracy": float(np.mean(predicted == labels)),
-        "untuned_accuracy": float(np.mean(untuned == labels)),
+        "untuned_accuracy": float(np.mean(untuned.argmax(1) == labels)),
         "confusion": confusion.tolist(),
         "predicted": predicted.tolist(),
         "log_likelihoods": log_lik.tolist(),
