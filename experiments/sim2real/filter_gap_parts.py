@@ -13,8 +13,9 @@ point, or the speed alone: what a robot that reports its executed speed could gi
 (`read`) each push read at the speed the robot reports, as `masspush sim2real` reads it.
 Group `com_offset` puts back only the objects' centre-of-mass offsets (each class's object
 its own, `Lab.com_offsets`): the one difference that is not the same for all five objects of
-a lab. Group `training` is the training world itself (no lab; with `--friction` and
-`--lengths` every chain pinned to them): what `all` leaves of the target world (condim 4, the
+a lab. Groups joined by `+` (`friction+geometry`) are put back together. Group `training`
+is the training world itself (no lab; with `--friction` and `--lengths` every chain pinned
+to them): what `all` leaves of the target world (condim 4, the
 links' contact priority, so their friction with each other is the table's) shows against it.
 Same chains and seeds in every row (paired); only the learned arm is run. `--density`
 weighs the pushes with another push density, e.g. one conditioned on the executed pushes
@@ -123,13 +124,44 @@ def training_with(
             overrides = {**setting.overrides, "tool_friction": tool_friction}
             setting = replace(setting, overrides=overrides)
         original(self, setting, *args, **kwargs)
-        self.options = {**(self.options or {}), **pinned}
+        if pinned:
+            self.options = {**(self.options or {}), **pinned}
 
     return mock.patch.object(SimRobot, "__init__", init)
 
 
 OBJECT_GROUPS = {"com_offset": ("com_offset",)}
 """Groups of this experiment only: knobs of one kind that differ object by object."""
+
+
+def friction_value(text: str) -> float:
+    """An argparse type: a friction coefficient in (0, 10)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not 0 < value < 10:  # also refuses nan
+        raise argparse.ArgumentTypeError(f"must be in (0, 10), got {text}")
+    return value
+
+
+def lengths_value(text: str) -> list[float]:
+    """An argparse type: the setting's link lengths, m, comma-separated, each in 0.01-1."""
+    n_links = get_setting(SETTING).n_links
+    try:
+        lengths = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not numbers: {text!r}") from None
+    if len(lengths) != n_links or not all(0.01 <= v <= 1 for v in lengths):
+        raise argparse.ArgumentTypeError(f"{n_links} lengths in 0.01-1 m, got {text!r}")
+    return lengths
+
+
+def put_back(group: str, groups: dict) -> dict:
+    """`groups` with `group` in it: a "+"-joined group puts back its parts' knobs together
+    (`friction+geometry`)."""
+    parts = group.split("+")
+    return groups | {group: tuple(k for part in parts for k in groups[part])}
 
 
 def main() -> None:
@@ -144,18 +176,19 @@ def main() -> None:
     parser.add_argument("--segments", type=int, default=1, help="runs of 2 pushes per episode")
     parser.add_argument(
         "--friction",
-        type=float,
+        type=friction_value,
         default=None,
         help="the lab's mean table friction (default: its own)",
     )
     parser.add_argument(
         "--lengths",
+        type=lengths_value,
         default=None,
         help="the chain's true link lengths, m, comma-separated (default: its own)",
     )
     parser.add_argument(
         "--tool-friction",
-        type=float,
+        type=friction_value,
         default=None,
         help="group training only: the tool's friction (default: the setting's, 1.0)",
     )
@@ -163,30 +196,23 @@ def main() -> None:
     args = parser.parse_args()
     groups = args.groups.split(",")
     known = ["all", "training", *told, *GROUPS, *OBJECT_GROUPS]
-    unknown = set(groups) - set(known)
+    parts = {part for group in groups for part in group.split("+")}
+    unknown = parts - set(known)
     if unknown:
-        parser.error(f"--groups: unknown {sorted(unknown)}; known: {', '.join(known)}")
+        parser.error(f"--groups: unknown {sorted(unknown)}; known: {', '.join(known)} (and "
+                     "groups of knobs joined by +)")  # fmt: skip
+    alone = {"none", "all", "training", *told}
+    joined = sorted({p for g in groups if "+" in g for p in g.split("+")} & alone)
+    if joined:
+        parser.error(f"--groups: {', '.join(joined)} cannot be joined with another by +")
     if args.lab < 0:
         parser.error("--lab must be >= 0")
     if args.segments < 1:
         parser.error("--segments must be >= 1")
-    if args.friction is not None and not 0 < args.friction < 10:
-        parser.error(f"--friction must be in (0, 10), got {args.friction}")
-    if args.tool_friction is not None:
-        if not 0 < args.tool_friction < 10:
-            parser.error(f"--tool-friction must be in (0, 10), got {args.tool_friction}")
-        if groups != ["training"]:
-            parser.error("--tool-friction: only with --groups training (the target world's "
-                         "tool takes the links' friction)")  # fmt: skip
-    lengths = None
-    if args.lengths is not None:
-        n_links = get_setting(SETTING).n_links
-        try:
-            lengths = [float(v) for v in args.lengths.split(",")]
-        except ValueError:
-            parser.error(f"--lengths: not numbers: {args.lengths!r}")
-        if len(lengths) != n_links or not all(0.01 <= v <= 1 for v in lengths):
-            parser.error(f"--lengths: {n_links} lengths in 0.01-1 m, got {args.lengths!r}")
+    if args.tool_friction is not None and groups != ["training"]:
+        parser.error("--tool-friction: only with --groups training (the target world's "
+                     "tool takes the links' friction)")  # fmt: skip
+    lengths = args.lengths
     out = Path(args.out) / str(args.lab)
     try:  # before any episode: a bad --out is said at once, not after the first group
         out.mkdir(parents=True, exist_ok=True)
@@ -215,7 +241,7 @@ def main() -> None:
         runs += f"-density{Path(args.density).stem}"
     for group in groups:
         world = (TargetWorld() if group in told or group == "training"
-                 else world_without(group, GROUPS | OBJECT_GROUPS))  # fmt: skip
+                 else world_without(group, put_back(group, GROUPS | OBJECT_GROUPS)))  # fmt: skip
         path = out / f"{group}{runs}.jsonl"
         name = f"masspush target world, lab {args.lab}, {group} put back, bayes{weighed}"
         run = replace(config, read_speeds=group == "read")
@@ -239,8 +265,7 @@ def main() -> None:
             patches = []
         if args.friction is not None or lengths is not None:
             name += f", friction {args.friction}, lengths {lengths}"
-        pins = (args.friction, lengths, args.tool_friction)
-        if group == "training" and any(v is not None for v in pins):
+        if group == "training":  # without pins the patch changes nothing
             name += "" if args.tool_friction is None else f", tool {args.tool_friction}"
             patches = [*patches, training_with(args.friction, lengths, args.tool_friction)]
         elif args.friction is not None or lengths is not None:
