@@ -13,7 +13,9 @@ point, or the speed alone: what a robot that reports its executed speed could gi
 (`read`) each push read at the speed the robot reports, as `masspush sim2real` reads it.
 Group `com_offset` puts back only the objects' centre-of-mass offsets (each class's object
 its own, `Lab.com_offsets`): the one difference that is not the same for all five objects of
-a lab. Groups joined by `+` (`friction+geometry`) are put back together. Group `training`
+a lab. Groups joined by `+` (`friction+geometry`) are put back together; `all-X` puts back
+every group but X (`all-geometry`: the training world with the lab's geometry). Group
+`training`
 is the training world itself (no lab; with `--friction` and `--lengths` every chain pinned
 to them): what `all` leaves of the target world (condim 4, the
 links' contact priority, so their friction with each other is the table's) shows against it.
@@ -159,7 +161,12 @@ def lengths_value(text: str) -> list[float]:
 
 def put_back(group: str, groups: dict) -> dict:
     """`groups` with `group` in it: a "+"-joined group puts back its parts' knobs together
-    (`friction+geometry`)."""
+    (`friction+geometry`), `all-X` every knob but X's (the training world with one kind of
+    the lab's differences)."""
+    if group.startswith("all-"):
+        kept = set(groups[group.removeprefix("all-")])
+        knobs = dict.fromkeys(k for ks in groups.values() for k in ks if k not in kept)
+        return groups | {group: tuple(knobs)}
     parts = group.split("+")
     return groups | {group: tuple(k for part in parts for k in groups[part])}
 
@@ -195,14 +202,14 @@ def main() -> None:
     parser.add_argument("--out", default="results/sim2real-filter-gap-parts")
     args = parser.parse_args()
     groups = args.groups.split(",")
-    known = ["all", "training", *told, *GROUPS, *OBJECT_GROUPS]
+    knobs = [g for g in [*GROUPS, *OBJECT_GROUPS] if g != "none"]
+    known = ["all", "training", *told, *GROUPS, *OBJECT_GROUPS, *(f"all-{g}" for g in knobs)]
     parts = {part for group in groups for part in group.split("+")}
     unknown = parts - set(known)
     if unknown:
         parser.error(f"--groups: unknown {sorted(unknown)}; known: {', '.join(known)} (and "
                      "groups of knobs joined by +)")  # fmt: skip
-    alone = {"none", "all", "training", *told}
-    joined = sorted({p for g in groups if "+" in g for p in g.split("+")} & alone)
+    joined = sorted({p for g in groups if "+" in g for p in g.split("+")} - set(knobs))
     if joined:
         parser.error(f"--groups: {', '.join(joined)} cannot be joined with another by +")
     if args.lab < 0:
