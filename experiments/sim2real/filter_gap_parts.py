@@ -25,16 +25,19 @@ weighs the pushes with another push density, e.g. one conditioned on the execute
 episode and prints the accuracy after each number of runs. `--friction` and `--lengths` give
 the lab another table (its mean friction; the field's pattern stays) or chain (the links' true
 lengths; the robot is told them with the lab's own measuring errors): which of a lab's own
-draws holds it back? `--tool-friction` (group `training` only) gives the training world's
+draws holds it back? `--one-friction-per-chain` lays every link on the friction field's
+value at the chain's centre (the table varies as the chain moves, not from link to link).
+`--tool-friction` (group `training` only) gives the training world's
 tool another friction, e.g. to measure a push density trained with it (`--density`).
 
     python experiments/sim2real/filter_gap_parts.py [--lab 5] [--groups none,all,told,...]
         [--density FILE] [--segments N] [--friction MU] [--lengths A,B] [--tool-friction MU]
+        [--one-friction-per-chain]
         [--out results/sim2real-filter-gap-parts]
 
 Recordings are kept in `--out/<lab>/<group>.jsonl` (`<group>-<N>runs.jsonl` with
-`--segments`; `-friction<MU>`, `-lengths<A>,<B>`, `-tool<MU>` and `-density<NAME>` added with
-those) and reused; prints one row per group.
+`--segments`; `-friction<MU>`, `-lengths<A>,<B>`, `-tool<MU>`, `-perchain` and
+`-density<NAME>` added with those) and reused; prints one row per group.
 """
 
 import argparse
@@ -93,6 +96,18 @@ def executed_patches(components: list[int]):
 
     return [mock.patch.object(TargetWorldRobot, "push", record),
             mock.patch.object(FilterArm, "predict", told)]  # fmt: skip
+
+
+def one_friction_per_chain():
+    """A patch of the target world's friction field under which every link of the chain
+    lies on the field's value at the links' mean position: the table still varies as the
+    chain moves, but not from one link to the next."""
+
+    def update(self):
+        xy = self.sim.data.geom_xpos[self._boxes, :2].mean(axis=0, keepdims=True)
+        self.sim.model.geom_friction[self._boxes, 0] = self.field(xy)[0]
+
+    return mock.patch.object(TargetWorldRobot, "_update_friction", update)
 
 
 def lab_with(friction: float | None, lengths: list[float] | None):
@@ -199,6 +214,11 @@ def main() -> None:
         default=None,
         help="group training only: the tool's friction (default: the setting's, 1.0)",
     )
+    parser.add_argument(
+        "--one-friction-per-chain",
+        action="store_true",
+        help="the friction field read at the chain's centre for all its links",
+    )
     parser.add_argument("--out", default="results/sim2real-filter-gap-parts")
     args = parser.parse_args()
     groups = args.groups.split(",")
@@ -219,6 +239,8 @@ def main() -> None:
     if args.tool_friction is not None and groups != ["training"]:
         parser.error("--tool-friction: only with --groups training (the target world's "
                      "tool takes the links' friction)")  # fmt: skip
+    if args.one_friction_per_chain and "training" in groups:
+        parser.error("--one-friction-per-chain: the training world has no friction field")
     lengths = args.lengths
     out = Path(args.out) / str(args.lab)
     try:  # before any episode: a bad --out is said at once, not after the first group
@@ -244,6 +266,8 @@ def main() -> None:
         runs += "-lengths" + ",".join(f"{v:g}" for v in lengths)
     if args.tool_friction is not None:
         runs += f"-tool{args.tool_friction:g}"
+    if args.one_friction_per_chain:
+        runs += "-perchain"
     if args.density is not None:  # another density's recording is not this one's to reuse
         runs += f"-density{Path(args.density).stem}"
     for group in groups:
@@ -277,6 +301,9 @@ def main() -> None:
             patches = [*patches, training_with(args.friction, lengths, args.tool_friction)]
         elif args.friction is not None or lengths is not None:
             patches = [*patches, lab_with(args.friction, lengths)]
+        if args.one_friction_per_chain:
+            name += ", one friction per chain"
+            patches = [*patches, one_friction_per_chain()]
         with contextlib.ExitStack() as stack:
             for patch in patches:
                 stack.enter_context(patch)
