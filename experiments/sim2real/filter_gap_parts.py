@@ -15,10 +15,9 @@ Group `com_offset` puts back only the objects' centre-of-mass offsets (each clas
 its own, `Lab.com_offsets`): the one difference that is not the same for all five objects of
 a lab. Groups joined by `+` (`friction+geometry`) are put back together; `all-X` puts back
 every group but X (`all-geometry`: the training world with the lab's geometry). Group
-`training`
-is the training world itself (no lab; with `--friction` and `--lengths` every chain pinned
-to them): what `all` leaves of the target world (condim 4, the
-links' contact priority, so their friction with each other is the table's) shows against it.
+`training` is the training world itself (no lab; with `--friction` and `--lengths` every
+chain pinned to them): what `all` leaves of the target world (condim 4, the links' contact
+priority, so their friction with each other is the table's) shows against it.
 Same chains and seeds in every row (paired); only the learned arm is run. `--density`
 weighs the pushes with another push density, e.g. one conditioned on the executed pushes
 (`masspush train-density --actions executed`); `--segments 8` runs 8 runs of 2 pushes per
@@ -27,8 +26,8 @@ the lab another table (its mean friction; the field's pattern stays) or chain (t
 lengths; the robot is told them with the lab's own measuring errors): which of a lab's own
 draws holds it back? `--one-friction-per-chain` lays every link on the friction field's
 value at the chain's centre (the table varies as the chain moves, not from link to link).
-`--tool-friction` (group `training` only) gives the training world's
-tool another friction, e.g. to measure a push density trained with it (`--density`).
+`--tool-friction` (group `training` only) gives the training world's tool another friction,
+e.g. to measure a push density trained with it (`--density`).
 
     python experiments/sim2real/filter_gap_parts.py [--lab 5] [--groups none,all,told,...]
         [--density FILE] [--segments N] [--friction MU] [--lengths A,B] [--tool-friction MU]
