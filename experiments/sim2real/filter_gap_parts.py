@@ -221,14 +221,14 @@ def main() -> None:
     parser.add_argument("--out", default="results/sim2real-filter-gap-parts")
     args = parser.parse_args()
     groups = args.groups.split(",")
-    knobs = [g for g in [*GROUPS, *OBJECT_GROUPS] if g != "none"]
-    known = ["all", "training", *told, *GROUPS, *OBJECT_GROUPS, *(f"all-{g}" for g in knobs)]
+    joinable = [g for g in [*GROUPS, *OBJECT_GROUPS] if g != "none"]
+    known = ["all", "training", *told, *GROUPS, *OBJECT_GROUPS, *(f"all-{g}" for g in joinable)]
     parts = {part for group in groups for part in group.split("+")}
     unknown = parts - set(known)
     if unknown:
         parser.error(f"--groups: unknown {sorted(unknown)}; known: {', '.join(known)} (and "
                      "groups of knobs joined by +)")  # fmt: skip
-    joined = sorted({p for g in groups if "+" in g for p in g.split("+")} - set(knobs))
+    joined = sorted({p for g in groups if "+" in g for p in g.split("+")} - set(joinable))
     if joined:
         parser.error(f"--groups: {', '.join(joined)} cannot be joined with another by +")
     if args.lab < 0:
@@ -240,7 +240,6 @@ def main() -> None:
                      "tool takes the links' friction)")  # fmt: skip
     if args.one_friction_per_chain and "training" in groups:
         parser.error("--one-friction-per-chain: the training world has no friction field")
-    lengths = args.lengths
     out = Path(args.out) / str(args.lab)
     try:  # before any episode: a bad --out is said at once, not after the first group
         out.mkdir(parents=True, exist_ok=True)
@@ -261,8 +260,8 @@ def main() -> None:
     runs = "" if args.segments == 1 else f"-{args.segments}runs"
     if args.friction is not None:
         runs += f"-friction{args.friction:g}"
-    if lengths is not None:
-        runs += "-lengths" + ",".join(f"{v:g}" for v in lengths)
+    if args.lengths is not None:
+        runs += "-lengths" + ",".join(f"{v:g}" for v in args.lengths)
     if args.tool_friction is not None:
         runs += f"-tool{args.tool_friction:g}"
     if args.one_friction_per_chain:
@@ -293,13 +292,13 @@ def main() -> None:
             patches = []
         else:
             patches = []
-        if args.friction is not None or lengths is not None:
-            name += f", friction {args.friction}, lengths {lengths}"
+        if args.friction is not None or args.lengths is not None:
+            name += f", friction {args.friction}, lengths {args.lengths}"
         if group == "training":  # without pins the patch changes nothing
             name += "" if args.tool_friction is None else f", tool {args.tool_friction}"
-            patches = [*patches, training_with(args.friction, lengths, args.tool_friction)]
-        elif args.friction is not None or lengths is not None:
-            patches = [*patches, lab_with(args.friction, lengths)]
+            patches = [*patches, training_with(args.friction, args.lengths, args.tool_friction)]
+        elif args.friction is not None or args.lengths is not None:
+            patches = [*patches, lab_with(args.friction, args.lengths)]
         if args.one_friction_per_chain:
             name += ", one friction per chain"
             patches = [*patches, one_friction_per_chain()]

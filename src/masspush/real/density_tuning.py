@@ -241,8 +241,6 @@ def evidence_per_push(
     density explains a lab's pushes. Higher is better; comparable between densities only on
     the same episodes (e.g. one trained for another tool:
     docs/notebook/2026-12-07-slicker-tool.md)."""
-    if not any(len(p.actions) for p in pushes):  # before reading them
-        raise ValueError("no labelled push to weigh")
     log_lik = class_log_likelihoods(density, pushes, masses, frictions)
     return true_class_evidence(log_lik, pushes, labels)
 
